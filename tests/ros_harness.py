@@ -18,7 +18,7 @@ import xmlrpc.client
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
-BUILD = REPO / "build"
+BUILD = Path(os.environ.get("TURTLEBOT3C_BUILD_DIR", REPO / "build"))
 PRIME_ROS = BUILD / "prime" / "opt" / "ros" / "noetic"
 SIM_SPACE = BUILD / "sim"
 VENV = Path(os.environ.get("TURTLEBOT3C_VENV", REPO / ".venv"))
