@@ -3,8 +3,7 @@ import numpy as np
 import pytest
 import yaml
 
-from turtlebot3c_2dnav.map_files import (
-    MapFileError, OccupancyMap, load_map, read_pnm, save_map, trinary_pixels)
+from turtlebot3c_2dnav.map_files import MapFileError, OccupancyMap, load_map, read_pnm, save_map, trinary_pixels
 
 
 def sample_map():
@@ -28,7 +27,7 @@ def write_yaml(path, **keys):
 
 def write_p5(path, pixels, maxval=255):
     pixels = np.asarray(pixels, dtype=np.uint8)
-    path.write_bytes("P5\n{} {}\n{}\n".format(pixels.shape[1], pixels.shape[0], maxval).encode() + pixels.tobytes())
+    path.write_bytes(f"P5\n{pixels.shape[1]} {pixels.shape[0]}\n{maxval}\n".encode() + pixels.tobytes())
 
 
 def test_saved_map_reloads_to_the_same_trinary_grid_with_unknown_kept_unknown(tmp_path):
@@ -161,7 +160,7 @@ def test_missing_mode_is_trinary_and_unknown_mode_is_rejected(tmp_path):
 def test_each_required_key_missing_is_named(tmp_path, key):
     write_p5(tmp_path / "map.pgm", [[0]])
     write_yaml(tmp_path / "a.yaml", **{key: None})
-    with pytest.raises(MapFileError, match="lacks the key\\(s\\) {}".format(key)):
+    with pytest.raises(MapFileError, match=f"lacks the key\\(s\\) {key}"):
         load_map(tmp_path / "a.yaml")
 
 

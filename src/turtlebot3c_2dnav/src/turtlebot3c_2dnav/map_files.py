@@ -71,9 +71,9 @@ class OccupancyMap:
     def __init__(self, data, resolution, origin=(0.0, 0.0, 0.0)):
         data = np.asarray(data)
         if data.ndim != 2:
-            raise ValueError("occupancy data must be 2-D (height, width), got shape {}".format(data.shape))
+            raise ValueError(f"occupancy data must be 2-D (height, width), got shape {data.shape}")
         if not resolution > 0:
-            raise ValueError("resolution must be positive, got {}".format(resolution))
+            raise ValueError(f"resolution must be positive, got {resolution}")
         self.data = data.astype(np.int8)
         self.resolution = float(resolution)
         x, y, yaw = origin
@@ -95,7 +95,7 @@ class OccupancyMap:
     def from_message(cls, data, width, height, resolution, origin):
         cells = np.asarray(data, dtype=np.int8)
         if cells.size != width * height:
-            raise ValueError("occupancy data has {} cells, expected {} x {}".format(cells.size, width, height))
+            raise ValueError(f"occupancy data has {cells.size} cells, expected {width} x {height}")
         return cls(cells.reshape(height, width), resolution, origin)
 
     def __eq__(self, other):
@@ -103,7 +103,7 @@ class OccupancyMap:
                 and self.origin == other.origin and np.array_equal(self.data, other.data))
 
     def __repr__(self):
-        return "OccupancyMap({}x{} @ {} m, origin={})".format(self.width, self.height, self.resolution, self.origin)
+        return f"OccupancyMap({self.width}x{self.height} @ {self.resolution} m, origin={self.origin})"
 
 
 # --- saving ---------------------------------------------------------------------------------
@@ -120,12 +120,12 @@ def trinary_pixels(data, occupied_threshold=65, free_threshold=25):
 def validate_thresholds(occupied_threshold, free_threshold):
     """map_saver's limits: occupied in 1..100, free in 0..100, free below occupied."""
     if not 1 <= occupied_threshold <= 100:
-        raise ValueError("occupied threshold must be between 1 and 100, got {}".format(occupied_threshold))
+        raise ValueError(f"occupied threshold must be between 1 and 100, got {occupied_threshold}")
     if not 0 <= free_threshold <= 100:
-        raise ValueError("free threshold must be between 0 and 100, got {}".format(free_threshold))
+        raise ValueError(f"free threshold must be between 0 and 100, got {free_threshold}")
     if not free_threshold < occupied_threshold:
-        raise ValueError("free threshold ({}) must be below the occupied threshold ({})".format(
-            free_threshold, occupied_threshold))
+        raise ValueError(
+            f"free threshold ({free_threshold}) must be below the occupied threshold ({occupied_threshold})")
 
 
 def save_map(occupancy_map, prefix, occupied_threshold=65, free_threshold=25):
@@ -135,24 +135,26 @@ def save_map(occupancy_map, prefix, occupied_threshold=65, free_threshold=25):
     pgm_path, yaml_path = prefix + ".pgm", prefix + ".yaml"
     folder = os.path.dirname(os.path.abspath(prefix))
     if not os.path.isdir(folder):
-        raise MapFileError("cannot save map {}: folder {} does not exist".format(prefix, folder))
+        raise MapFileError(f"cannot save map {prefix}: folder {folder} does not exist")
     pixels = trinary_pixels(occupancy_map.data, occupied_threshold, free_threshold)
-    write_pgm(pgm_path, pixels, "turtlebot3c map {:.3f} m/pix".format(occupancy_map.resolution))
+    write_pgm(pgm_path, pixels, f"turtlebot3c map {occupancy_map.resolution:.3f} m/pix")
     _write_atomically(yaml_path, map_yaml_text(os.path.basename(pgm_path), occupancy_map).encode())
     return yaml_path, pgm_path
 
 
 def map_yaml_text(image_name, occupancy_map):
     x, y, yaw = occupancy_map.origin
-    return ("image: {}\nresolution: {!r}\norigin: [{!r}, {!r}, {!r}]\nnegate: 0\n"
-            "occupied_thresh: {}\nfree_thresh: {}\n").format(
-                _yaml_scalar(image_name), occupancy_map.resolution, x, y, yaw,
-                SAVED_OCCUPIED_THRESH, SAVED_FREE_THRESH)
+    return (f"image: {_yaml_scalar(image_name)}\n"
+            f"resolution: {occupancy_map.resolution!r}\n"
+            f"origin: [{x!r}, {y!r}, {yaw!r}]\n"
+            "negate: 0\n"
+            f"occupied_thresh: {SAVED_OCCUPIED_THRESH}\n"
+            f"free_thresh: {SAVED_FREE_THRESH}\n")
 
 
 def _yaml_scalar(text):
     """A plain file name as is; anything else double-quoted (a JSON string is a valid YAML scalar)."""
-    plain = text and all(c.isalnum() or c in "-_." for c in text) and not text[0] in "-."
+    plain = text and all(c.isalnum() or c in "-_." for c in text) and text[0] not in "-."
     return text if plain else json.dumps(text)
 
 
@@ -160,8 +162,8 @@ def write_pgm(path, pixels, comment=""):
     """Binary PGM (P5, maxval 255), rows as given (top row first)."""
     pixels = np.ascontiguousarray(pixels, dtype=np.uint8)
     height, width = pixels.shape
-    header = "P5\n# {}\n{} {}\n255\n".format(comment, width, height) if comment else \
-        "P5\n{} {}\n255\n".format(width, height)
+    header = f"P5\n# {comment}\n{width} {height}\n255\n" if comment else \
+        f"P5\n{width} {height}\n255\n"
     _write_atomically(os.fspath(path), header.encode() + pixels.tobytes())
 
 
@@ -206,11 +208,11 @@ def _read_yaml(yaml_path):
         with open(yaml_path, "rb") as stream:
             document = yaml.safe_load(stream)
     except OSError as error:
-        raise MapFileError("cannot read map file {}: {}".format(yaml_path, error.strerror or error))
+        raise MapFileError(f"cannot read map file {yaml_path}: {error.strerror or error}") from error
     except yaml.YAMLError as error:
-        raise MapFileError("map file {} is not valid YAML: {}".format(yaml_path, error))
+        raise MapFileError(f"map file {yaml_path} is not valid YAML: {error}") from error
     if not isinstance(document, dict):
-        raise MapFileError("map file {} is not a YAML mapping of map_server keys".format(yaml_path))
+        raise MapFileError(f"map file {yaml_path} is not a YAML mapping of map_server keys")
     missing = [key for key in REQUIRED_KEYS if key not in document]
     if missing:
         raise MapFileError("map file {} lacks the key(s) {} (map_server needs {})".format(
@@ -219,22 +221,22 @@ def _read_yaml(yaml_path):
     def number(key):
         value = document[key]
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise MapFileError("map file {}: {} must be a number, got {!r}".format(yaml_path, key, value))
+            raise MapFileError(f"map file {yaml_path}: {key} must be a number, got {value!r}")
         return float(value)
 
     image = document["image"]
     if not isinstance(image, str) or not image:
-        raise MapFileError("map file {}: image must be a non-empty file name, got {!r}".format(yaml_path, image))
+        raise MapFileError(f"map file {yaml_path}: image must be a non-empty file name, got {image!r}")
     resolution = number("resolution")
     if resolution <= 0:
-        raise MapFileError("map file {}: resolution must be positive, got {}".format(yaml_path, resolution))
+        raise MapFileError(f"map file {yaml_path}: resolution must be positive, got {resolution}")
     origin = document["origin"]
     if not isinstance(origin, (list, tuple)) or len(origin) != 3 or not all(
             isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in origin):
-        raise MapFileError("map file {}: origin must be [x, y, yaw] numbers, got {!r}".format(yaml_path, origin))
+        raise MapFileError(f"map file {yaml_path}: origin must be [x, y, yaw] numbers, got {origin!r}")
     negate = document["negate"]
     if isinstance(negate, bool) or not isinstance(negate, int):
-        raise MapFileError("map file {}: negate must be an integer (0 or 1), got {!r}".format(yaml_path, negate))
+        raise MapFileError(f"map file {yaml_path}: negate must be an integer (0 or 1), got {negate!r}")
     mode = document.get("mode", "trinary")
     if mode not in MODES:
         raise MapFileError("map file {}: mode {!r} is not one of {}".format(yaml_path, mode, ", ".join(MODES)))
@@ -289,35 +291,33 @@ def read_pnm(path):
         with open(path, "rb") as stream:
             content = stream.read()
     except OSError as error:
-        raise MapFileError("cannot read map image {}: {}".format(path, error.strerror or error))
+        raise MapFileError(f"cannot read map image {path}: {error.strerror or error}") from error
     magic = content[:2]
     if magic not in (b"P2", b"P3", b"P5", b"P6"):
-        raise MapFileError("map image {} is not a PGM/PPM file (P2, P3, P5 or P6); starts with {!r}".format(
-            path, content[:8]))
+        raise MapFileError(f"map image {path} is not a PGM/PPM file (P2, P3, P5 or P6); starts with {content[:8]!r}")
     channels = 3 if magic in (b"P3", b"P6") else 1
     fields, position = _pnm_header(path, content)
     width, height, maxval = fields
     if width <= 0 or height <= 0:
-        raise MapFileError("map image {} has an empty size {} x {}".format(path, width, height))
+        raise MapFileError(f"map image {path} has an empty size {width} x {height}")
     if not 0 < maxval <= 255:
-        raise MapFileError("map image {}: maxval {} unsupported (8-bit images only, maxval 1..255)".format(
-            path, maxval))
+        raise MapFileError(f"map image {path}: maxval {maxval} unsupported (8-bit images only, maxval 1..255)")
     count = width * height * channels
     if magic in (b"P5", b"P6"):
         body = content[position + 1:position + 1 + count]
         if len(body) < count:
-            raise MapFileError("map image {} is truncated: {} of {} pixel bytes".format(path, len(body), count))
+            raise MapFileError(f"map image {path} is truncated: {len(body)} of {count} pixel bytes")
         samples = np.frombuffer(body, dtype=np.uint8).astype(np.int64)
     else:
         try:
             samples = np.array(_strip_comments(content[position:]).split()[:count + 1], dtype=np.int64)
         except ValueError:
-            raise MapFileError("map image {} has a non-numeric sample".format(path))
+            raise MapFileError(f"map image {path} has a non-numeric sample") from None
         if samples.size < count:
-            raise MapFileError("map image {} is truncated: {} of {} samples".format(path, samples.size, count))
+            raise MapFileError(f"map image {path} is truncated: {samples.size} of {count} samples")
         samples = samples[:count]
     if samples.max(initial=0) > maxval:
-        raise MapFileError("map image {} has samples above its maxval {}".format(path, maxval))
+        raise MapFileError(f"map image {path} has samples above its maxval {maxval}")
     if maxval < 255:
         samples = samples * 255 // maxval
     return samples.astype(np.uint8).reshape(height, width, channels)
@@ -340,8 +340,8 @@ def _pnm_header(path, content):
         while position < size and content[position:position + 1].isdigit():
             position += 1
         if start == position:
-            raise MapFileError("map image {} has a malformed header (need width, height, maxval)".format(path))
+            raise MapFileError(f"map image {path} has a malformed header (need width, height, maxval)")
         fields.append(int(content[start:position]))
     if position >= size or not content[position:position + 1].isspace():
-        raise MapFileError("map image {} has a malformed header after maxval".format(path))
+        raise MapFileError(f"map image {path} has a malformed header after maxval")
     return fields, position
