@@ -21,6 +21,8 @@ class RobotModel(NamedTuple):
     footprint: Tuple[Tuple[float, float], ...]  # polygon in base_footprint, m
     max_linear_acceleration: float  # m/s^2
     max_angular_acceleration: float  # rad/s^2
+    scan_mount: Tuple[float, float, float]  # base_scan origin in base_footprint (x, y, z), m
+    imu_mount: Tuple[float, float, float]  # imu_link origin in base_footprint (x, y, z), m
 
     @property
     def max_linear_velocity(self) -> float:
@@ -42,6 +44,8 @@ MODELS: Dict[str, RobotModel] = {
         footprint=((-0.105, -0.105), (-0.105, 0.105), (0.041, 0.105), (0.041, -0.105)),
         max_linear_acceleration=2.5,
         max_angular_acceleration=3.2,
+        scan_mount=(-0.032, 0.0, 0.182),
+        imu_mount=(-0.032, 0.0, 0.078),
     ),
     "waffle": RobotModel(
         name="waffle",
@@ -53,6 +57,8 @@ MODELS: Dict[str, RobotModel] = {
         footprint=((-0.205, -0.155), (-0.205, 0.155), (0.077, 0.155), (0.077, -0.155)),
         max_linear_acceleration=2.5,
         max_angular_acceleration=3.2,
+        scan_mount=(-0.064, 0.0, 0.132),
+        imu_mount=(0.0, 0.0, 0.078),
     ),
 }
 MODELS["waffle_pi"] = MODELS["waffle"]._replace(name="waffle_pi")
