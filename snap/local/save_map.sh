@@ -1,0 +1,28 @@
+#!/bin/bash
+# mapping's stop-command: save the map SLAM has built so far as
+# $SNAP_USER_COMMON/map/new_map.{pgm,yaml}, for install_last_map.sh to install.
+#
+# The map is written in a private folder and moved in only when complete
+# (image first, YAML last), so new_map.yaml is never half-written.
+set -eu
+
+map_dir="$SNAP_USER_COMMON/map"
+mkdir -p "$map_dir"
+work="$(mktemp -d "$map_dir/.saving.XXXXXX")"
+trap 'rm -rf -- "$work"' EXIT
+
+if ! rosrun turtlebot3c_2dnav map_saver -f "$work/map"; then
+  echo "save_map: the map could not be saved (see the map_saver message above)" >&2
+  exit 1
+fi
+for file in "$work/map.pgm" "$work/map.yaml"; do
+  if [ ! -s "$file" ]; then
+    echo "save_map: map_saver reported success but wrote no $(basename -- "$file")" >&2
+    exit 1
+  fi
+done
+
+sync -- "$work/map.pgm" "$work/map.yaml"
+mv -f -- "$work/map.pgm" "$map_dir/new_map.pgm"
+mv -f -- "$work/map.yaml" "$map_dir/new_map.yaml"
+echo "save_map: map saved as $map_dir/new_map.yaml"
