@@ -1,0 +1,184 @@
+"""Local control: a dynamic-window controller that follows the global plan.
+
+Each control period it samples (v, w) pairs reachable within one period under the
+acceleration limits, rolls each out as an arc for sim_time seconds, drops the arcs that
+would bring the robot into an inscribed or lethal costmap cell, and picks the arc whose
+end is closest to a carrot point on the plan (lookahead ahead of the robot), close to
+the plan itself, well oriented towards the carrot, and far from obstacles.
+
+Around that core: the robot turns on the spot first when the plan starts behind it;
+near the goal the carrot is the goal and the speed falls with the distance left so it
+stops within xy_goal_tolerance; once there it turns on the spot to the goal heading
+(the position is latched, as upstream's latch_xy_goal_tolerance).
+"""
+import math
+from typing import NamedTuple, Optional
+
+import numpy as np
+
+from .costmap import INSCRIBED
+from .geometry import wrap, wrap_angle
+
+
+class DwaParams(NamedTuple):
+    max_vel_x: float = 0.22
+    min_vel_x: float = 0.0
+    max_vel_theta: float = 2.75
+    min_in_place_vel_theta: float = 0.4
+    acc_lim_x: float = 2.5
+    acc_lim_theta: float = 3.2
+    sim_time: float = 1.5
+    sim_granularity: float = 0.1
+    vx_samples: int = 20
+    vth_samples: int = 40
+    controller_frequency: float = 10.0
+    path_distance_bias: float = 1.0
+    goal_distance_bias: float = 2.0
+    heading_bias: float = 0.3
+    occdist_scale: float = 0.3
+    lookahead: float = 0.5
+    rotate_in_place_threshold: float = 0.9  # rad of heading error to the carrot
+    approach_deceleration: float = 0.3  # m/s^2: the braking profile towards the goal
+    min_approach_vel: float = 0.03
+    xy_goal_tolerance: float = 0.05
+    yaw_goal_tolerance: float = 0.17
+
+
+def dwa_params_for_model(model, **overrides) -> DwaParams:
+    """Limits of a turtlebot3c_description RobotModel, with optional overrides."""
+    params = DwaParams(max_vel_x=model.max_linear_velocity, max_vel_theta=model.max_angular_velocity,
+                       acc_lim_x=model.max_linear_acceleration, acc_lim_theta=model.max_angular_acceleration)
+    return params._replace(**overrides)
+
+
+class Command(NamedTuple):
+    linear: float
+    angular: float
+    status: str  # "follow", "rotate", "approach", "align", "arrived", "blocked"
+
+
+class DwaController:
+    def __init__(self, params: Optional[DwaParams] = None):
+        self.params = params or DwaParams()
+        self.plan: Optional[np.ndarray] = None
+        self.goal = None
+        self.xy_reached = False
+        self._progress_index = 0
+        self._last_distance = math.inf
+        self.last_trajectory: Optional[np.ndarray] = None
+
+    def set_plan(self, plan, goal):
+        """A new plan (N x 2, in the frame of the poses given to compute) towards goal (x, y, yaw)."""
+        new_goal = self.goal is None or any(abs(a - b) > 1e-9 for a, b in zip(goal, self.goal))
+        self.plan = np.asarray(plan, dtype=float)
+        self.goal = tuple(goal)
+        self._progress_index = 0
+        if new_goal:
+            self.xy_reached = False
+            self._last_distance = math.inf
+
+    def compute(self, pose, velocity, costmap) -> Command:
+        """Velocity command for robot `pose` (x, y, yaw) moving at `velocity` (v, w)."""
+        p = self.params
+        x, y, yaw = pose
+        gx, gy, gyaw = self.goal
+        distance = math.hypot(gx - x, gy - y)
+        # Stop well inside the tolerance, or as soon as the robot, inside it, starts to pass the goal.
+        passing = distance > self._last_distance and distance <= p.xy_goal_tolerance
+        self._last_distance = distance
+        if distance <= 0.6 * p.xy_goal_tolerance or passing:
+            self.xy_reached = True
+        if self.xy_reached:
+            return self._align(wrap(gyaw - yaw), velocity)
+        carrot, near_goal = self._carrot(x, y)
+        heading_error = wrap(math.atan2(carrot[1] - y, carrot[0] - x) - yaw)
+        if abs(heading_error) > p.rotate_in_place_threshold and abs(velocity[0]) < 0.05:
+            return self._turn(heading_error, velocity, "rotate")
+        return self._best_arc(pose, velocity, carrot, near_goal, distance, costmap)
+
+    # --- pieces -----------------------------------------------------------------------
+
+    def _carrot(self, x, y):
+        """The point lookahead metres along the plan past the robot's nearest plan point."""
+        plan = self.plan
+        window = plan[self._progress_index:self._progress_index + 60]
+        nearest = self._progress_index + int(np.argmin(np.hypot(window[:, 0] - x, window[:, 1] - y)))
+        self._progress_index = nearest
+        steps = np.hypot(*np.diff(plan[nearest:], axis=0).T) if len(plan) - nearest > 1 else np.zeros(0)
+        along = np.concatenate([[0.0], np.cumsum(steps)])
+        ahead = int(np.searchsorted(along, self.params.lookahead))
+        if ahead >= len(along):
+            return plan[-1], True
+        return plan[nearest + ahead], False
+
+    def _turn(self, error, velocity, status):
+        """Turn on the spot towards `error`, braking in time not to overshoot."""
+        p = self.params
+        reachable = math.sqrt(2.0 * p.acc_lim_theta * 0.8 * abs(error))
+        speed = min(p.max_vel_theta, reachable, max(p.min_in_place_vel_theta, 3.0 * abs(error)))
+        return Command(0.0, math.copysign(speed, error), status)
+
+    def _align(self, error, velocity):
+        if abs(error) <= self.params.yaw_goal_tolerance * 0.5:
+            return Command(0.0, 0.0, "arrived")
+        return self._turn(error, velocity, "align")
+
+    def _samples(self, velocity):
+        p = self.params
+        period = 1.0 / p.controller_frequency
+        v0, w0 = velocity
+        v_low = max(p.min_vel_x, v0 - p.acc_lim_x * period)
+        v_high = min(p.max_vel_x, v0 + p.acc_lim_x * period)
+        w_low = max(-p.max_vel_theta, w0 - p.acc_lim_theta * period)
+        w_high = min(p.max_vel_theta, w0 + p.acc_lim_theta * period)
+        vs = np.linspace(v_low, max(v_low, v_high), p.vx_samples)
+        straight = [0.0] if w_low <= 0.0 <= w_high else []
+        ws = np.unique(np.concatenate([np.linspace(w_low, w_high, p.vth_samples), straight]))
+        v_grid, w_grid = np.meshgrid(vs, ws, indexing="ij")
+        return v_grid.ravel(), w_grid.ravel()
+
+    def rollout(self, pose, v, w):
+        """Poses (S x T x 3) along arcs of constant (v, w) from `pose`."""
+        p = self.params
+        steps = max(1, int(round(p.sim_time / p.sim_granularity)))
+        t = np.arange(1, steps + 1)[None, :] * p.sim_granularity
+        v, w = np.asarray(v)[:, None], np.asarray(w)[:, None]
+        x0, y0, yaw0 = pose
+        yaw = yaw0 + w * t
+        straight = np.abs(w) < 1e-6
+        safe_w = np.where(straight, 1.0, w)
+        xs = np.where(straight, x0 + v * t * math.cos(yaw0), x0 + v / safe_w * (np.sin(yaw) - math.sin(yaw0)))
+        ys = np.where(straight, y0 + v * t * math.sin(yaw0), y0 - v / safe_w * (np.cos(yaw) - math.cos(yaw0)))
+        return np.stack([xs, ys, np.broadcast_to(yaw, xs.shape)], axis=-1)
+
+    def _best_arc(self, pose, velocity, carrot, near_goal, distance, costmap):
+        p = self.params
+        v, w = self._samples(velocity)
+        if near_goal:
+            # Slow down with the distance left, so the robot stops inside the tolerance.
+            braking = math.sqrt(2.0 * p.approach_deceleration * max(0.0, distance - 0.3 * p.xy_goal_tolerance))
+            v_cap = max(p.min_approach_vel, min(p.max_vel_x, braking))
+            keep = v <= v_cap + 1e-9
+            if not keep.any():
+                keep = v <= v.min() + 1e-9
+            v, w = v[keep], w[keep]
+        trajectories = self.rollout(pose, v, w)
+        costs = costmap.cost_at(trajectories[..., 0], trajectories[..., 1]).astype(float)
+        worst = costs.max(axis=1)
+        valid = worst < INSCRIBED
+        if not valid.any():
+            self.last_trajectory = None
+            return Command(0.0, 0.0, "blocked")
+        ends = trajectories[:, -1, :]
+        goal_cost = np.hypot(ends[:, 0] - carrot[0], ends[:, 1] - carrot[1])
+        segment = self.plan[self._progress_index:self._progress_index + 80]
+        path_cost = np.min(np.hypot(ends[:, 0:1] - segment[None, :, 0], ends[:, 1:2] - segment[None, :, 1]), axis=1)
+        direction = np.arctan2(carrot[1] - ends[:, 1], carrot[0] - ends[:, 0])
+        close = goal_cost < 0.1  # on the carrot itself, the direction to it means nothing
+        heading_cost = np.where(close, 0.0, np.abs(wrap_angle(direction - ends[:, 2])))
+        score = (p.goal_distance_bias * goal_cost + p.path_distance_bias * path_cost
+                 + p.heading_bias * heading_cost + p.occdist_scale * worst / 252.0)
+        score[~valid] = np.inf
+        best = int(np.argmin(score))
+        self.last_trajectory = trajectories[best]
+        return Command(float(v[best]), float(w[best]), "approach" if near_goal else "follow")

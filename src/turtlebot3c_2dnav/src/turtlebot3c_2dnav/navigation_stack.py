@@ -1,0 +1,120 @@
+"""Assembly of the navigation pieces from a map and a robot model, shared by the ROS
+nodes, the closed-loop simulations of the tests and the benchmark.
+
+Maps arrive as occupancy values (nav_msgs/OccupancyGrid semantics: -1 unknown, 0..100);
+cells at or above `occupied_value` are obstacles, unknown cells are neither free space
+for localisation nor passable for planning.
+"""
+import math
+from typing import NamedTuple, Optional
+
+import numpy as np
+
+from .amcl import AmclParams, ParticleFilter
+from .costmap import Costmap, RollingCostmap
+from .dwa import DwaController, DwaParams, dwa_params_for_model
+from .geometry import GridInfo, compose, inverse
+from .global_planner import GlobalPlanner
+from .navigation import Navigator, NavParams
+
+# Laser mount (scan_joint) in base_footprint per model, from turtlebot3_description;
+# the ROS nodes read it from tf instead.
+SCAN_MOUNTS = {"burger": (-0.032, 0.0, 0.0), "waffle": (-0.064, 0.0, 0.0), "waffle_pi": (-0.064, 0.0, 0.0)}
+
+
+class MapLayers(NamedTuple):
+    info: GridInfo
+    occupied: np.ndarray
+    free: np.ndarray
+    unknown: np.ndarray
+
+
+def map_layers(data, resolution, origin, occupied_value=65, free_value=25) -> MapLayers:
+    """Occupied / free / unknown bool grids of occupancy values (rows = y index)."""
+    data = np.asarray(data)
+    info = GridInfo(float(resolution), data.shape[1], data.shape[0], float(origin[0]), float(origin[1]))
+    unknown = data < 0
+    occupied = data >= occupied_value
+    free = (data >= 0) & (data <= free_value)
+    return MapLayers(info, occupied, free, unknown)
+
+
+def layers_from_occupied(occupied, resolution, origin) -> MapLayers:
+    """Layers of a bool grid with no unknown cells (e.g. a rasterised simulator world)."""
+    occupied = np.asarray(occupied, dtype=bool)
+    return map_layers(np.where(occupied, 100, 0), resolution, origin)
+
+
+class CostmapParams(NamedTuple):
+    robot_radius: float = 0.105
+    safety_margin: float = 0.03
+    inflation_radius: float = 1.0
+    cost_scaling_factor: float = 3.0
+    obstacle_range: float = 3.0
+    raytrace_range: float = 3.5
+    local_size: float = 3.0
+    local_resolution: float = 0.05
+
+
+def costmap_params_for_model(model, **overrides) -> CostmapParams:
+    return CostmapParams(robot_radius=model.robot_radius)._replace(**overrides)
+
+
+def make_costmaps(layers: MapLayers, params: CostmapParams):
+    radius = params.robot_radius + params.safety_margin
+    common = dict(robot_radius=radius, inflation_radius=params.inflation_radius,
+                  cost_scaling_factor=params.cost_scaling_factor, obstacle_range=params.obstacle_range,
+                  raytrace_range=params.raytrace_range)
+    global_costmap = Costmap(layers.info, layers.occupied, layers.unknown, **common)
+    local_costmap = RollingCostmap(size=params.local_size, resolution=params.local_resolution, **common)
+    return global_costmap, local_costmap
+
+
+def make_navigator(layers: MapLayers, model, costmap_params: CostmapParams = None, dwa_params: DwaParams = None,
+                   nav_params: Optional[NavParams] = None, cost_weight=3.0) -> Navigator:
+    costmap_params = costmap_params or costmap_params_for_model(model)
+    dwa_params = dwa_params or dwa_params_for_model(model)
+    global_costmap, local_costmap = make_costmaps(layers, costmap_params)
+    return Navigator(global_costmap, local_costmap, GlobalPlanner(cost_weight=cost_weight),
+                     DwaController(dwa_params), nav_params)
+
+
+def make_filter(layers: MapLayers, params: Optional[AmclParams] = None, seed=None) -> ParticleFilter:
+    return ParticleFilter(layers.occupied, layers.info, free=layers.free, params=params, seed=seed)
+
+
+class Localizer:
+    """The particle filter plus the map→odom correction it implies (what amcl publishes)."""
+
+    def __init__(self, particle_filter: ParticleFilter):
+        self.filter = particle_filter
+        self.map_from_odom = (0.0, 0.0, 0.0)
+
+    def set_pose(self, pose_map, odom, covariance=None):
+        self.filter.set_pose(pose_map, covariance)
+        self.filter.last_odom = None
+        self.map_from_odom = compose(pose_map, inverse(odom))
+
+    def global_localization(self):
+        self.filter.global_localization()
+        self.filter.last_odom = None
+
+    def update(self, odom, ranges, angles, range_min, sensor_offset) -> bool:
+        ran = self.filter.update(odom, ranges, angles, range_min, sensor_offset)
+        if ran and self.filter.estimate is not None:
+            self.map_from_odom = compose(self.filter.estimate.pose, inverse(odom))
+        return ran
+
+    def pose(self, odom):
+        """Robot pose in the map given its odometry pose now."""
+        return compose(self.map_from_odom, odom)
+
+
+def scan_angles(scan):
+    return scan.angle_min + np.arange(len(scan.ranges)) * scan.angle_increment
+
+
+def pose_error(estimate, truth):
+    """(position error m, heading error rad) between two poses."""
+    return (math.hypot(estimate[0] - truth[0], estimate[1] - truth[1]),
+            abs(math.atan2(math.sin(estimate[2] - truth[2]), math.cos(estimate[2] - truth[2]))))
