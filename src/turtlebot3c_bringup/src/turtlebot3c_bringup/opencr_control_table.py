@@ -107,9 +107,14 @@ def encode(item: Item, value) -> bytes:
     return struct.pack(item.format, value)
 
 
+def velocity_units(value: float) -> int:
+    """`value` in the table's 0.01 units, truncated toward zero so a clamped command stays within its limit.
+
+    (Rounding to 1e-6 first keeps 0.29 from becoming 28 through 28.999999999999996.)
+    """
+    return int(round(value * VELOCITY_SCALE, 6))
+
+
 def encode_velocity_command(linear_x: float, angular_z: float) -> bytes:
     """The 24 bytes the driver writes at CMD_VELOCITY_START for a Twist."""
-    return struct.pack(
-        "<6i",
-        int(round(linear_x * VELOCITY_SCALE)), 0, 0,
-        0, 0, int(round(angular_z * VELOCITY_SCALE)))
+    return struct.pack("<6i", velocity_units(linear_x), 0, 0, 0, 0, velocity_units(angular_z))

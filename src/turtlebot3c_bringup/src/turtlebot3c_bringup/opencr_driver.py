@@ -1,0 +1,211 @@
+"""The OpenCR driver's behaviour, without ROS: connect, poll, command, keep alive, recover.
+
+The node calls `cycle()` from one I/O thread at the read rate and `command()`
+from its /cmd_vel callback; everything it publishes comes from the fresh
+`Reading` that `cycle()` returns, so nothing stale is ever published while the
+link is down. On a lost link the driver closes the port and retries with an
+exponential backoff; on reconnection the odometry takes the first reading as
+its new baseline, so it resumes from the last pose without a jump.
+"""
+import time
+from typing import NamedTuple, Optional
+
+from turtlebot3c_bringup.backoff import Backoff
+from turtlebot3c_bringup.opencr_control_table import encode_velocity_command
+from turtlebot3c_bringup.opencr_link import LinkError, LinkLost
+from turtlebot3c_bringup.opencr_sensors import SensorState, check_device, decode_sensor_block
+from turtlebot3c_bringup.velocity_command import clamp_to_model
+from turtlebot3c_bringup.wheel_odometry import WheelOdometry
+from turtlebot3c_description.models import RobotModel
+
+HEARTBEAT_PERIOD = 0.1  # s; the firmware stops the motors after 0.5 s without a heartbeat change
+COMMAND_TIMEOUT = 0.5  # s of /cmd_vel silence before the driver commands zero velocity
+MAX_CONSECUTIVE_FAILURES = 10  # failed reads in a row that mean the link is gone, not just noisy
+
+
+class Reading(NamedTuple):
+    stamp: float  # the driver clock's time of the read
+    sensors: SensorState
+    odometry_updated: bool  # False for a baseline reading (first one after a (re)connection)
+
+
+class LinkStatistics:
+    def __init__(self):
+        self.reads = 0
+        self.writes = 0
+        self.errors = {}
+        self.link_losses = 0
+        self.reconnections = 0
+        self.last_error = ""
+
+    def count_error(self, kind: str, message: str):
+        self.errors[kind] = self.errors.get(kind, 0) + 1
+        self.last_error = message
+
+    @property
+    def total_errors(self) -> int:
+        return sum(self.errors.values())
+
+
+class _PrintLog:
+    def info(self, message):
+        print(message)
+
+    warning = error = info
+
+
+class OpenCRDriver:
+    def __init__(self, link, model: RobotModel, use_imu_yaw: bool = True, clock=time.monotonic, log=None,
+                 command_timeout: float = COMMAND_TIMEOUT, backoff: Optional[Backoff] = None):
+        self.link = link
+        self.model = model
+        self.clock = clock
+        self.log = log or _PrintLog()
+        self.command_timeout = command_timeout
+        self.backoff = backoff or Backoff()
+        self.stats = LinkStatistics()
+        self.odometry = WheelOdometry(model.wheel_radius, model.wheel_separation,
+                                      model.max_linear_velocity / model.wheel_radius, use_imu_yaw=use_imu_yaw)
+        self.device_info = None
+        self.connected = False
+        self._next_attempt = 0.0
+        self._lost_since = None
+        self._attempts = 0
+        self._failures = 0
+        self._heartbeat = 0
+        self._next_heartbeat = 0.0
+        self._last_command_time = None
+        self._moving = False
+
+    # --- connection ---------------------------------------------------------------------
+
+    def _connect(self, now):
+        self._attempts += 1
+        try:
+            self.link.open()
+            self.link.ping()
+            info = self.link.read_device_info()
+        except (LinkError, LinkLost) as error:
+            self.link.close()
+            self._retry_later(now, str(error))
+            return
+        fatal, warnings = check_device(info, self.model.name)
+        if fatal:
+            self.link.close()
+            self._retry_later(now, "; ".join(fatal), level="error")
+            return
+        for warning in warnings:
+            self.log.warning(warning)
+        self.device_info = info
+        self.connected = True
+        self._failures = 0
+        self.odometry.rebaseline()
+        self.backoff.reset()
+        self._next_heartbeat = now
+        self._safe_write(lambda: self.link.write_velocity(encode_velocity_command(0.0, 0.0)))
+        self._moving = False
+        if self._lost_since is None:
+            self.log.info(f"OpenCR on {self.link.port_name}: firmware version {info.firmware_version}, "
+                          f"model information {info.model_information}")
+        else:
+            self.stats.reconnections += 1
+            self.log.info(f"OpenCR link on {self.link.port_name} restored after {now - self._lost_since:.1f} s "
+                          f"({self._attempts} attempts); odometry continues from the last pose")
+        self._lost_since = None
+        self._attempts = 0
+
+    def _retry_later(self, now, reason, level="warning"):
+        delay = self.backoff.next_delay()
+        self._next_attempt = now + delay
+        self.stats.last_error = reason
+        if self._attempts == 1 or level == "error":
+            getattr(self.log, level)(f"cannot reach the OpenCR on {self.link.port_name}: {reason}; "
+                                     f"retrying (backoff up to {self.backoff.maximum:.1f} s)")
+
+    def _lose(self, now, reason):
+        self.connected = False
+        self.stats.link_losses += 1
+        self.stats.last_error = reason
+        self.link.close()
+        self._lost_since = now
+        self._attempts = 0
+        self._next_attempt = now + self.backoff.next_delay()
+        self.log.error(f"OpenCR link lost on {self.link.port_name}: {reason}; "
+                       "odometry paused, reconnecting with backoff")
+
+    # --- the I/O cycle ----------------------------------------------------------------------
+
+    def cycle(self) -> Optional[Reading]:
+        """One read cycle: a fresh Reading, or None while the link is down or the read failed."""
+        now = self.clock()
+        if not self.connected:
+            if now >= self._next_attempt:
+                self._connect(now)
+            if not self.connected:
+                return None
+        reading = self._read(now)
+        if self.connected:
+            self._keep_alive(now)
+        return reading
+
+    def _read(self, now):
+        try:
+            block = self.link.read_sensor_block()
+        except LinkLost as error:
+            self._lose(now, str(error))
+            return None
+        except LinkError as error:
+            self.stats.count_error(error.kind, str(error))
+            self._failures += 1
+            if self._failures >= MAX_CONSECUTIVE_FAILURES:
+                self._lose(now, f"{self._failures} reads in a row failed, last: {error}")
+            return None
+        self._failures = 0
+        self.stats.reads += 1
+        sensors = decode_sensor_block(block)
+        updated = self.odometry.update(sensors.encoder_ticks[0], sensors.encoder_ticks[1], now, sensors.imu_yaw)
+        return Reading(now, sensors, updated)
+
+    def _keep_alive(self, now):
+        if now >= self._next_heartbeat:
+            self._heartbeat = (self._heartbeat + 1) & 0xFF
+            self._next_heartbeat = now + HEARTBEAT_PERIOD
+            self._safe_write(lambda: self.link.write_heartbeat(self._heartbeat))
+        if self._moving and now - self._last_command_time >= self.command_timeout:
+            self.log.warning(f"no /cmd_vel for {self.command_timeout:.2f} s: stopping the robot")
+            self._write_command(0.0, 0.0)
+
+    def _safe_write(self, write) -> bool:
+        try:
+            write()
+        except (LinkError, LinkLost) as error:
+            kind = error.kind if isinstance(error, LinkError) else "lost"
+            self.stats.count_error(kind, str(error))
+            return False
+        self.stats.writes += 1
+        return True
+
+    def _write_command(self, linear, angular) -> bool:
+        ok = self._safe_write(lambda: self.link.write_velocity(encode_velocity_command(linear, angular)))
+        if ok:
+            self._moving = linear != 0.0 or angular != 0.0
+        return ok
+
+    # --- commands ---------------------------------------------------------------------------
+
+    def command(self, linear_x: float, angular_z: float):
+        """A /cmd_vel: clamp to the model's limits and write it now. Returns the clamped pair."""
+        linear, angular = clamp_to_model(self.model, linear_x, angular_z)
+        self._last_command_time = self.clock()
+        if self.connected:
+            self._write_command(linear, angular)
+        return linear, angular
+
+    def set_torque(self, enabled: bool) -> bool:
+        return self.connected and self._safe_write(lambda: self.link.write_torque(enabled))
+
+    def shutdown(self):
+        if self.connected:
+            self._write_command(0.0, 0.0)
+        self.link.close()
+        self.connected = False
