@@ -160,6 +160,9 @@ class OpenCRDriver:
             if self._failures >= MAX_CONSECUTIVE_FAILURES:
                 self._lose(now, f"{self._failures} reads in a row failed, last: {error}")
             return None
+        except Exception as error:  # whatever the SDK trips over: reopen the port rather than die
+            self._lose(now, f"unexpected {type(error).__name__}: {error}")
+            return None
         self._failures = 0
         self.stats.reads += 1
         sensors = decode_sensor_block(block)

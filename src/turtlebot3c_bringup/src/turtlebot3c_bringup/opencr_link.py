@@ -7,10 +7,10 @@ port safe to share between the driver's threads.
 import threading
 
 import dynamixel_sdk
-import serial
 
 from turtlebot3c_bringup import opencr_control_table as table
 from turtlebot3c_bringup.opencr_sensors import DEVICE_INFO_SIZE, DEVICE_INFO_START, decode_device_info
+from turtlebot3c_bringup.serial_errors import DEVICE_ERRORS
 
 
 class LinkError(Exception):
@@ -54,7 +54,7 @@ class OpenCRLink:
         try:
             if not port.setBaudRate(self.baud_rate):
                 raise LinkLost(f"baud rate {self.baud_rate} is not supported by the serial port {self.port_name}")
-        except (OSError, serial.SerialException) as error:
+        except DEVICE_ERRORS as error:
             raise LinkLost(f"cannot open {self.port_name}: {error}") from error
         with self._lock:
             self._port = port
@@ -65,7 +65,7 @@ class OpenCRLink:
         if port is not None and port.ser is not None:
             try:
                 port.ser.close()
-            except (OSError, serial.SerialException):
+            except DEVICE_ERRORS:
                 pass
 
     def _call(self, what, request):
@@ -75,7 +75,7 @@ class OpenCRLink:
                 raise LinkLost(f"{self.port_name} is not open")
             try:
                 result = request(self._port)
-            except (OSError, serial.SerialException, TypeError, AttributeError) as error:
+            except DEVICE_ERRORS + (TypeError, AttributeError) as error:
                 # pyserial raises on a vanished device; the SDK may then trip over a half-read reply.
                 self._port.is_using = False
                 raise LinkLost(f"{what} on {self.port_name}: {error}") from error

@@ -4,6 +4,7 @@ import time
 import serial
 
 from turtlebot3c_bringup.backoff import Backoff
+from turtlebot3c_bringup.serial_errors import DEVICE_ERRORS
 
 
 class SerialStream:
@@ -36,7 +37,7 @@ class SerialStream:
             self.serial = serial.Serial(self.port, self.baud, timeout=0.1)
             if self.on_open:
                 self.serial.write(self.on_open)
-        except (OSError, serial.SerialException) as error:
+        except DEVICE_ERRORS as error:
             self._close()
             self.last_error = str(error)
             self._next_attempt = now + self.backoff.next_delay()
@@ -57,7 +58,7 @@ class SerialStream:
             return b""
         try:
             return self.serial.read(max(1, min(size, self.serial.in_waiting)))
-        except (OSError, serial.SerialException) as error:
+        except DEVICE_ERRORS as error:
             self.losses += 1
             self.last_error = str(error)
             self._report("error", f"lost {self.port}: {error}; reopening with backoff")
@@ -70,7 +71,7 @@ class SerialStream:
         if self.serial is not None:
             try:
                 self.serial.close()
-            except (OSError, serial.SerialException):
+            except DEVICE_ERRORS:
                 pass
         self.serial = None
 
@@ -78,7 +79,7 @@ class SerialStream:
         if self.serial is not None and self.on_close:
             try:
                 self.serial.write(self.on_close)
-            except (OSError, serial.SerialException):
+            except DEVICE_ERRORS:
                 pass
         self._close()
 
