@@ -203,6 +203,14 @@ class Simulation:
         self.collided = True
         return free
 
+    def teleport(self, x: float, y: float, yaw: float):
+        """Move the robot (ground truth only; odometry and encoders do not notice) and stop it."""
+        if self.footprint_collides(x, y, yaw):
+            raise ValueError(f"pose ({x:.3f}, {y:.3f}, {yaw:.3f}) overlaps an obstacle in {self.world.name}")
+        self._x, self._y, self._yaw = float(x), float(y), normalize_angle(float(yaw))
+        self._linear = self._angular = 0.0
+        self.in_contact = False
+
     def clear_collision(self):
         self.collided = False
 
@@ -277,14 +285,19 @@ class Simulation:
 
     def scan(self, beams: int = SCAN_BEAMS, range_max: float = SCAN_RANGE_MAX) -> Scan:
         """A LIDAR revolution taken now, in base_scan, with Gaussian range noise."""
-        x, y, yaw = self.scan_pose()
         increment = 2.0 * math.pi / beams
-        angles = np.arange(beams) * increment
+        ranges = self.scan_ranges(np.arange(beams) * increment, range_max)
+        return Scan(0.0, increment, ranges, SCAN_RANGE_MIN, range_max, self.time)
+
+    def scan_ranges(self, angles, range_max: float = SCAN_RANGE_MAX) -> np.ndarray:
+        """Noisy ranges now along `angles` (rad, CCW in base_scan); np.inf for no return."""
+        x, y, yaw = self.scan_pose()
+        angles = np.asarray(angles, float)
         ranges = self.world.raycast(x, y, yaw + angles, range_max)
         if self.noise.scan_range_std:
-            noisy = ranges + self._scan_random.normal(0.0, self.noise.scan_range_std, beams)
+            noisy = ranges + self._scan_random.normal(0.0, self.noise.scan_range_std, ranges.shape)
             ranges = np.where(np.isfinite(ranges), np.maximum(noisy, 0.0), np.inf)
-        return Scan(0.0, increment, ranges, SCAN_RANGE_MIN, range_max, self.time)
+        return ranges
 
     def imu(self) -> Imu:
         """An IMU reading now: drifting heading, noisy gyro and accelerometer (centripetal in y)."""
