@@ -90,17 +90,21 @@ class _PacketClock:
 
     def __init__(self, packets_per_second: float, start_time: float):
         self.period = 1.0 / packets_per_second
-        self.next_time = start_time
+        self._base_time, self._base_index = start_time, 0
         self.next_index = 0
+
+    @property
+    def next_time(self) -> float:
+        # Computed from a base rather than accumulated, so rounding never drifts the rate.
+        return self._base_time + (self.next_index - self._base_index) * self.period
 
     def due(self, now: float):
         while self.next_time <= now:
             yield self.next_index, self.next_time
             self.next_index += 1
-            self.next_time += self.period
 
     def restart(self, now: float):
-        self.next_time = max(self.next_time, now)
+        self._base_time, self._base_index = max(self.next_time, now), self.next_index
 
 
 class Lds01Stream:
