@@ -115,7 +115,7 @@ def test_mux_starts_on_nav_vel(make_master):
     master.launch("turtlebot3c_teleop", "turtlebot3c_teleop.launch")
     master.wait_for_service("/mux/select")
     probe = master.probe
-    assert probe.wait_for_message("/mux/selected", "std_msgs/String", start=0)["data"] == "/nav_vel"
+    assert probe.wait_for_message("/mux/selected", "std_msgs/String", start=0)["data"].lstrip("/") == "nav_vel"
     probe.subscribe("/cmd_vel", TWIST)
 
     def nav_vel_reached_cmd_vel():
