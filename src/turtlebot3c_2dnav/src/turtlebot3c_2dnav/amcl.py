@@ -42,9 +42,16 @@ class AmclParams(NamedTuple):
     laser_z_rand: float = 0.5
     laser_sigma_hit: float = 0.2
     laser_likelihood_max_dist: float = 2.0
-    # Beams are not independent: scaling the summed log-likelihood keeps the filter from
-    # collapsing onto one particle after one scan (1.0 is the plain product of beams).
+    # Beams are not independent: scaling the summed log-likelihood down keeps the filter
+    # from collapsing onto one hypothesis after one scan (1.0 is the plain product of
+    # beams). While the cloud is spread (several places, e.g. after a global
+    # relocalisation in a symmetric world) the flatter scale keeps every hypothesis alive
+    # until the robot sees what tells them apart; once it has one place, the sharper one
+    # gives the accuracy.
     likelihood_scale: float = 1.0
+    likelihood_scale_spread: float = 0.1
+    converged_spread: float = 0.3  # m, position standard deviation of the main cluster
+    converged_share: float = 0.9  # of the weight in the main cluster
     initial_cov_xx: float = 0.5 * 0.5
     initial_cov_yy: float = 0.5 * 0.5
     initial_cov_aa: float = (math.pi / 12.0) ** 2
@@ -95,6 +102,7 @@ def _normal_quantile(p: float) -> float:
 class Estimate(NamedTuple):
     pose: Tuple[float, float, float]
     covariance: np.ndarray  # 3 x 3 over (x, y, yaw)
+    share: float = 1.0  # of the particle weight in the cluster the pose comes from
 
 
 class ParticleFilter:
@@ -138,7 +146,7 @@ class ParticleFilter:
         samples += np.asarray(pose, dtype=float)
         samples[:, 2] = wrap_angle(samples[:, 2])
         self._reset(samples)
-        self.estimate = Estimate(tuple(float(v) for v in pose), cov)
+        self.estimate = Estimate(tuple(float(v) for v in pose), cov, 1.0)
 
     def global_localization(self):
         """Spread max_particles uniformly over free space with uniform headings."""
@@ -227,7 +235,9 @@ class ParticleFilter:
         ranges, angles = self.select_beams(ranges, angles, range_min)
         if ranges.size == 0:
             return
-        log_w = self.field.log_likelihood(self.particles, ranges, angles, sensor_offset) * self.params.likelihood_scale
+        converged = self.converged()
+        scale = self.params.likelihood_scale if converged else self.params.likelihood_scale_spread
+        log_w = self.field.log_likelihood(self.particles, ranges, angles, sensor_offset) * scale
         log_w += np.log(np.maximum(self.weights, 1e-300))
         peak = log_w.max()
         weights = np.exp(log_w - peak)
@@ -315,7 +325,15 @@ class ParticleFilter:
         diff[:, 2] = wrap_angle(diff[:, 2])
         w = cluster_w / cluster_w.sum()
         covariance = (diff * w[:, None]).T @ diff
-        return Estimate(mean, covariance)
+        return Estimate(mean, covariance, float(cluster_w.sum() / self.weights.sum()))
+
+    def converged(self) -> bool:
+        """One place holds nearly all the weight, and it is tight."""
+        estimate = self.estimate
+        if estimate is None:
+            return False
+        spread = math.sqrt(max(0.0, estimate.covariance[0, 0] + estimate.covariance[1, 1]))
+        return estimate.share >= self.params.converged_share and spread <= self.params.converged_spread
 
     def spread(self) -> Tuple[float, float]:
         """Position (m) and heading (rad) standard deviations of the whole cloud."""

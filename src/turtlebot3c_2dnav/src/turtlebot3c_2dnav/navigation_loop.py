@@ -9,8 +9,19 @@ updates the particle filter and both costmaps, as the amcl and move_base nodes d
 import math
 from typing import List, NamedTuple, Optional
 
+import numpy as np
+
 from .navigation import ACTIVE
-from .navigation_stack import Localizer, pose_error, scan_angles
+from .navigation_stack import Localizer, MapLayers, layers_from_occupied, pose_error, scan_angles
+
+
+def world_layers(world, resolution=0.05) -> MapLayers:
+    """A perfect map of a simulator world (its rasterisation over the world's bounds)."""
+    xmin, ymin, xmax, ymax = world.bounds
+    width = int(np.ceil((xmax - xmin) / resolution))
+    height = int(np.ceil((ymax - ymin) / resolution))
+    occupied = world.rasterize(resolution, (xmin, ymin), width, height)
+    return layers_from_occupied(occupied, resolution, (xmin, ymin))
 
 
 class GoalResult(NamedTuple):
@@ -24,11 +35,13 @@ class GoalResult(NamedTuple):
 
 class ClosedLoop:
     def __init__(self, sim, navigator, localizer: Optional[Localizer], sensor_offset=(0.0, 0.0, 0.0),
-                 sim_step=0.02, scan_period=0.2):
-        """With localizer None the robot knows its true pose (to test planning and control alone)."""
+                 sim_step=0.02, scan_period=0.2, shadow_localizer: Optional[Localizer] = None):
+        """With localizer None the robot knows its true pose (to test planning and control alone);
+        a shadow localizer gets the same scans and odometry but does not steer."""
         self.sim = sim
         self.navigator = navigator
         self.localizer = localizer
+        self.shadow_localizer = shadow_localizer
         self.sensor_offset = sensor_offset
         self.sim_step = sim_step
         self.scan_period = scan_period
@@ -52,8 +65,9 @@ class ClosedLoop:
         scan = self.sim.scan()
         angles = scan_angles(scan)
         odom = self.odom_pose()
-        if self.localizer is not None:
-            self.localizer.update(odom, scan.ranges, angles, scan.range_min, self.sensor_offset)
+        for localizer in (self.localizer, self.shadow_localizer):
+            if localizer is not None:
+                localizer.update(odom, scan.ranges, angles, scan.range_min, self.sensor_offset)
         self.navigator.update_scan(self.estimated_pose(), odom, scan.ranges, angles, scan.range_min,
                                    self.sensor_offset)
 

@@ -11,15 +11,16 @@ from typing import NamedTuple, Optional
 import numpy as np
 
 from .amcl import AmclParams, ParticleFilter
-from .costmap import Costmap, RollingCostmap
+from .costmap import Costmap, RollingCostmap, footprint_radii
 from .dwa import DwaController, DwaParams, dwa_params_for_model
 from .geometry import GridInfo, compose, inverse
 from .global_planner import GlobalPlanner
 from .navigation import Navigator, NavParams
 
-# Laser mount (scan_joint) in base_footprint per model, from turtlebot3_description;
-# the ROS nodes read it from tf instead.
-SCAN_MOUNTS = {"burger": (-0.032, 0.0, 0.0), "waffle": (-0.064, 0.0, 0.0), "waffle_pi": (-0.064, 0.0, 0.0)}
+
+def scan_offset(model):
+    """The laser's planar pose (x, y, yaw) in base_footprint; the ROS nodes read it from tf instead."""
+    return (model.scan_mount[0], model.scan_mount[1], 0.0)
 
 
 class MapLayers(NamedTuple):
@@ -57,7 +58,9 @@ class CostmapParams(NamedTuple):
 
 
 def costmap_params_for_model(model, **overrides) -> CostmapParams:
-    return CostmapParams(robot_radius=model.robot_radius)._replace(**overrides)
+    """The robot as the circle its footprint sweeps when it turns on the spot."""
+    _, circumscribed = footprint_radii(model.footprint)
+    return CostmapParams(robot_radius=circumscribed)._replace(**overrides)
 
 
 def make_costmaps(layers: MapLayers, params: CostmapParams):
