@@ -12,6 +12,8 @@ from turtlebot3c_bringup import opencr_control_table as table
 from turtlebot3c_bringup.opencr_sensors import DEVICE_INFO_SIZE, DEVICE_INFO_START, decode_device_info
 from turtlebot3c_bringup.serial_errors import DEVICE_ERRORS
 
+POLL_TIMEOUT = 0.002  # s, longest single wait for reply bytes inside one SDK poll
+
 
 class LinkError(Exception):
     """One request failed (timeout, corrupt reply, device error); the link may still be usable."""
@@ -54,6 +56,10 @@ class OpenCRLink:
         try:
             if not port.setBaudRate(self.baud_rate):
                 raise LinkLost(f"baud rate {self.baud_rate} is not supported by the serial port {self.port_name}")
+            # The SDK polls the port with a zero timeout while it waits for a reply: a busy loop that holds
+            # the GIL and starves the node's other threads (the /cmd_vel callback among them). A short
+            # blocking timeout makes each poll sleep in select until the bytes it asks for arrive.
+            port.ser.timeout = POLL_TIMEOUT
         except DEVICE_ERRORS as error:
             raise LinkLost(f"cannot open {self.port_name}: {error}") from error
         with self._lock:
