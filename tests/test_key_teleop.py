@@ -12,7 +12,14 @@ import pytest
 
 from ros_harness import wait_until
 from turtlebot3c_description.models import get_model
-from turtlebot3c_teleop.keyboard_teleop import KeyboardTeleop, help_text, is_quit_key, is_stop_key, limits_for_model
+from turtlebot3c_teleop.keyboard_teleop import (
+    KeyboardTeleop,
+    help_text,
+    is_quit_key,
+    is_stop_key,
+    limits_for_model,
+    split_keys,
+)
 from turtlebot3c_teleop.terminal import key_mode_attributes
 
 TWIST = "geometry_msgs/Twist"
@@ -101,6 +108,12 @@ def test_other_keys_change_nothing_and_ctrl_c_quits():
     assert (teleop.target_linear, teleop.target_angular) == (0, 0)
     assert is_quit_key("\x03")
     assert not is_quit_key("w")
+
+
+def test_arrow_and_function_keys_are_not_read_as_letters():
+    assert split_keys("w\x1b[Ax\x1b[D\x1bOPa\x1b[15~d") == ["w", "x", "a", "d"]
+    assert split_keys("\x1b") == []
+    assert split_keys("\x03") == ["\x03"]
 
 
 def test_status_line_and_help_name_the_model_and_its_limits():
@@ -254,7 +267,7 @@ def test_keys_drive_key_vel_within_the_models_limits(ros_master, pty_session):
     start = probe.count("/key_vel")
     session.type("www")
     wait_for_key_vel(probe, start, 3 * limits.linear_step, 0.0)
-    session.type("a")
+    session.type("\x1b[D\x1b[Ca")  # left and right arrows send ESC [ D and ESC [ C: not d, not a
     wait_for_key_vel(probe, start, 3 * limits.linear_step, limits.angular_step)
     session.type(" ")
     wait_for_key_vel(probe, start, 0.0, 0.0)

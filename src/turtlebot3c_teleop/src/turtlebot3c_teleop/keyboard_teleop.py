@@ -10,7 +10,8 @@ fixed burger table: a waffle may go faster and must turn slower than a burger.
 Targets are counted in whole steps, so `w` then `x` lands exactly on zero.
 """
 import math
-from typing import NamedTuple, Optional
+import re
+from typing import List, NamedTuple, Optional
 
 from turtlebot3c_description.models import RobotModel
 
@@ -47,6 +48,15 @@ def limits_for_model(model: RobotModel, linear_step: Optional[float] = None,
         if not getattr(limits, name) > 0:
             raise ValueError(f"{name} must be positive, got {getattr(limits, name)}")
     return limits
+
+
+# Arrow and function keys send escape sequences (ESC [ A is "up"): their letters are not keys.
+_ESCAPE_SEQUENCE = re.compile(r"\x1b(\[[0-?]*[ -/]*[@-~]|O.|.)?", re.DOTALL)
+
+
+def split_keys(text: str) -> List[str]:
+    """The single key presses in what the terminal sent, escape sequences dropped."""
+    return list(_ESCAPE_SEQUENCE.sub("", text))
 
 
 def is_quit_key(key: str) -> bool:

@@ -11,7 +11,7 @@ import os
 import select
 import signal
 import termios
-from typing import Iterator, List
+from typing import Iterator
 
 _LFLAG = 3
 _IFLAG = 0
@@ -56,18 +56,18 @@ def restore(fd: int, attributes: list) -> bool:
         return False
 
 
-def read_keys(fd: int, timeout: float) -> List[str]:
-    """Keys pressed within `timeout` seconds (possibly none); TerminalClosed when input ended."""
+def read_input(fd: int, timeout: float) -> str:
+    """What the terminal sent within `timeout` seconds (possibly nothing); TerminalClosed when input ended."""
     ready, _, _ = select.select([fd], [], [], max(0.0, timeout))
     if not ready:
-        return []
+        return ""
     try:
         data = os.read(fd, 64)
     except OSError as error:  # EIO: the terminal hung up
         raise TerminalClosed(str(error)) from None
     if not data:
         raise TerminalClosed("end of input")
-    return list(data.decode("latin-1"))
+    return data.decode("latin-1")
 
 
 def raise_on_signals(*signums: int) -> None:
