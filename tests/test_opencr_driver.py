@@ -251,3 +251,20 @@ def test_a_missing_port_is_retried_until_the_board_appears(tmp_path):
             server.close()
     finally:
         runner.close()
+
+
+def test_a_board_that_never_answers_gets_a_firmware_hint(tmp_path):
+    silent = PtyLink(tmp_path / "ttyACM0")  # a port whose device says nothing, like the ROS 1 firmware at 1 Mbps
+    silent.plug()
+    log = Log()
+    runner = Runner(OpenCRDriver(OpenCRLink(str(silent.path)), get_model("burger"), log=log,
+                                 backoff=Backoff(0.05, 0.3)))
+    try:
+        wait_until(lambda: log.lines, 5, "nothing logged about the silent board")
+        assert not runner.driver.connected
+        level, message = log.lines[0]
+        assert level == "warning"
+        assert "cannot reach the OpenCR" in message and "ROS 2 TurtleBot3 firmware" in message
+    finally:
+        runner.close()
+        silent.unplug()

@@ -85,7 +85,13 @@ class OpenCRDriver:
             self.link.open()
             self.link.ping()
             info = self.link.read_device_info()
-        except (LinkError, LinkLost) as error:
+        except LinkError as error:
+            self.link.close()
+            self._retry_later(now, f"{error} (no answer at ID {self.link.device_id}: is the board flashed with "
+                                   "ROBOTIS's ROS 2 TurtleBot3 firmware, which speaks Dynamixel Protocol 2.0? "
+                                   "The ROS 1 rosserial firmware does not; see the README)")
+            return
+        except LinkLost as error:
             self.link.close()
             self._retry_later(now, str(error))
             return
