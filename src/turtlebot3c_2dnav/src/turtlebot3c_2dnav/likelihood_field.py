@@ -50,6 +50,17 @@ def distance_transform(occupied, resolution, max_distance):
     return np.minimum(np.sqrt(best) * resolution, max_distance)
 
 
+def obstacle_boundary(occupied):
+    """Occupied cells with a non-occupied 4-neighbour: the surfaces a laser can hit.
+
+    Scoring beam ends by their distance to these (not to any occupied cell) makes an end
+    point deep inside a filled obstacle unlikely, as it should be: no beam gets there."""
+    occupied = np.asarray(occupied, dtype=bool)
+    padded = np.pad(occupied, 1, mode="constant", constant_values=False)
+    interior = padded[:-2, 1:-1] & padded[2:, 1:-1] & padded[1:-1, :-2] & padded[1:-1, 2:]
+    return occupied & ~interior
+
+
 class LikelihoodField:
     """Scan likelihood against a map: each beam end point scores by its distance to the
     nearest obstacle (Gaussian of width sigma_hit, mixed with a uniform for random returns)."""
@@ -58,7 +69,7 @@ class LikelihoodField:
                  max_range=3.5):
         self.info = info
         self.max_distance = max_distance
-        self.distances = distance_transform(occupied, info.resolution, max_distance)
+        self.distances = distance_transform(obstacle_boundary(occupied), info.resolution, max_distance)
         self.sigma_hit = sigma_hit
         self.z_hit = z_hit
         self.z_rand = z_rand
