@@ -194,8 +194,9 @@ def test_unplug_is_reported_and_replug_resumes_without_an_odometry_jump(running,
         runner.driver.command(0.2, 0.3)
         time.sleep(0.1)
     board.unplug()
-    wait_until(lambda: not runner.driver.connected, 5, "the driver did not notice the unplugged board")
-    assert any(level == "error" and "OpenCR link lost" in message for level, message in log.lines)
+    wait_until(lambda: any(level == "error" and "OpenCR link lost" in message for level, message in log.lines), 5,
+               "the driver did not report the unplugged board")
+    assert not runner.driver.connected
     count = len(runner.readings)
     pose_at_loss = runner.driver.odometry.pose
     time.sleep(0.5)

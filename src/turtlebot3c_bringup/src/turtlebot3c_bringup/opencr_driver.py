@@ -103,7 +103,6 @@ class OpenCRDriver:
         for warning in warnings:
             self.log.warning(warning)
         self.device_info = info
-        self.connected = True
         self._failures = 0
         self.odometry.rebaseline()
         self.backoff.reset()
@@ -119,6 +118,7 @@ class OpenCRDriver:
                           f"({self._attempts} attempts); odometry continues from the last pose")
         self._lost_since = None
         self._attempts = 0
+        self.connected = True
 
     def _retry_later(self, now, reason, level="warning"):
         delay = self.backoff.next_delay()
@@ -129,7 +129,6 @@ class OpenCRDriver:
                                      f"retrying (backoff up to {self.backoff.maximum:.1f} s)")
 
     def _lose(self, now, reason):
-        self.connected = False
         self.stats.link_losses += 1
         self.stats.last_error = reason
         self.link.close()
@@ -138,6 +137,7 @@ class OpenCRDriver:
         self._next_attempt = now + self.backoff.next_delay()
         self.log.error(f"OpenCR link lost on {self.link.port_name}: {reason}; "
                        "odometry paused, reconnecting with backoff")
+        self.connected = False
 
     # --- the I/O cycle ----------------------------------------------------------------------
 
