@@ -194,11 +194,18 @@ def _dump_part(name, part, project_dir, prime, host_python):
 def _organized(relative, organize):
     """Where `organize` puts a file: `'glob': dir/` moves it into dir, `'name': other` renames it."""
     for pattern, destination in organize.items():
-        if fnmatch.fnmatchcase(relative, pattern):
+        if _glob_match(relative, pattern):
             if destination.endswith("/"):
                 return destination + os.path.basename(relative)
             return destination
     return relative
+
+
+def _glob_match(relative, pattern):
+    """Glob matching as in a folder: `*` never crosses a `/`."""
+    parts, pattern_parts = relative.split("/"), pattern.rstrip("/").split("/")
+    return len(parts) == len(pattern_parts) and all(
+        fnmatch.fnmatchcase(part, wanted) for part, wanted in zip(parts, pattern_parts))
 
 
 def _python_part(name, part, project_dir, prime, host_python):

@@ -108,6 +108,7 @@ class Supervisor:
         self.status = {"supervisor": os.getpid(), "state": "activating", "main_pid": None, "starts": 0,
                        "restarts": 0, "result": None, "exit_code": None, "exit_signal": None}
         self.exited = {}  # pid -> wait status, for children reaped by the SIGCHLD loop
+        self.children = {}  # pid -> Popen, of children not reaped yet
         self.stop_requested = False
 
     # --- plumbing ---------------------------------------------------------------------
@@ -150,6 +151,7 @@ class Supervisor:
             if pid == 0:
                 return
             self.exited[pid] = status
+            self.children.pop(pid, None)
 
     def spawn(self, command, ident):
         argv, env, cwd = environment.app_command(
@@ -162,6 +164,9 @@ class Supervisor:
             self.log(f"Failed to execute {argv[0]}: {error}")
             return None
         journal.follow_stream(self.layout, self.unit, ident, process.pid, process.stdout)
+        # Keep the Popen object until the child is reaped here: a collected Popen
+        # polls its child and would take the exit status from us.
+        self.children[process.pid] = process
         return process.pid
 
     def wait_exit(self, pid, timeout, until_stop_request=False):

@@ -1,0 +1,308 @@
+"""Helpers for the snap tests: a snapsim system under a temporary root, and test stand-ins.
+
+STAND-INS: until the real turtlebot3c_bringup launch file, the mapping and
+navigation launch files, key/joy launch files and turtlebot3c_2dnav's map_saver
+exist, tests put stand-ins for them in a private copy of the install space (never
+in the build itself). Each is added only when the real file is missing, so the
+tests run the real ones as soon as they land.
+"""
+import json
+import os
+import shutil
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import ros_harness
+from ros_harness import wait_until
+
+REPO = ros_harness.REPO
+SNAPSIM = REPO / "scripts" / "snapsim"
+STANDIN_NODE = '<node pkg="topic_tools" type="relay" name="{name}" args="{name}_in {name}_out"/>'
+
+
+def _standin_launch(name, args):
+    lines = ["<launch>", f"  <!-- TEST STAND-IN for {name}: records its arguments as parameters. -->"]
+    lines += [f'  <arg name="{arg}"/>' for arg in args]
+    lines += [f'  <param name="standin/{name}/{arg}" value="$(arg {arg})"/>' for arg in args]
+    lines += ["  " + STANDIN_NODE.format(name=f"standin_{name}"), "</launch>", ""]
+    return "\n".join(lines)
+
+
+STANDIN_LAUNCH_FILES = {
+    "share/turtlebot3c_bringup/launch/turtlebot3c_bringup.launch":
+        ("bringup", ["simulation", "model", "lds_model", "opencr_port", "lds_port"]),
+    "share/turtlebot3c_2dnav/launch/turtlebot3c_mapping.launch": ("mapping", ["model"]),
+    "share/turtlebot3c_2dnav/launch/turtlebot3c_navigation.launch": ("navigation", ["model", "map_file"]),
+    "share/turtlebot3c_teleop/launch/key.launch": ("key", ["model"]),
+    "share/turtlebot3c_teleop/launch/joy.launch": ("joy", ["model"]),
+}
+
+STANDIN_MAP_SAVER = '''#!/usr/bin/env python3
+"""TEST STAND-IN for turtlebot3c_2dnav's map_saver: map_saver -f PREFIX writes PREFIX.pgm and
+PREFIX.yaml from the first /map (map_server's format and thresholds), or fails when none comes."""
+import sys
+
+import rospy
+from nav_msgs.msg import OccupancyGrid
+
+prefix = sys.argv[sys.argv.index("-f") + 1]
+rospy.init_node("map_saver", anonymous=True)
+try:
+    grid = rospy.wait_for_message("/map", OccupancyGrid, timeout=5.0)
+except rospy.ROSException:
+    sys.exit("map_saver: no map arrived on /map within 5 s")
+width, height = grid.info.width, grid.info.height
+pixels = bytearray()
+for row in range(height - 1, -1, -1):
+    for value in grid.data[row * width:(row + 1) * width]:
+        pixels.append(254 if 0 <= value <= 19 else 0 if value >= 65 else 205)
+with open(prefix + ".pgm", "wb") as image:
+    image.write(b"P5\\n# CREATOR: map_saver stand-in\\n%d %d\\n255\\n" % (width, height) + bytes(pixels))
+origin = grid.info.origin.position
+with open(prefix + ".yaml", "w") as description:
+    description.write("image: %s.pgm\\nresolution: %f\\norigin: [%f, %f, 0.000000]\\nnegate: 0\\n"
+                      "occupied_thresh: 0.65\\nfree_thresh: 0.196\\n"
+                      % (prefix, grid.info.resolution, origin.x, origin.y))
+print("map_saver: saved " + prefix + ".yaml")
+'''
+
+
+def install_space_with_standins(destination):
+    """A copy of the built install space at destination/prime/opt/ros/noetic, with stand-ins added."""
+    source = ros_harness.PRIME_ROS
+    target = Path(destination) / "prime" / "opt" / "ros" / "noetic"
+    shutil.copytree(source, target, symlinks=True)
+    for path in target.rglob("*"):
+        if path.is_file() and not path.is_symlink():
+            data = path.read_bytes()
+            if str(source).encode() in data and b"\0" not in data:
+                path.write_bytes(data.replace(str(source).encode(), str(target).encode()))
+    for relative, (name, args) in STANDIN_LAUNCH_FILES.items():
+        if not (target / relative).exists():
+            (target / relative).parent.mkdir(parents=True, exist_ok=True)
+            (target / relative).write_text(_standin_launch(name, args))
+    map_saver = target / "lib" / "turtlebot3c_2dnav" / "map_saver"
+    if not map_saver.exists():
+        map_saver.parent.mkdir(parents=True, exist_ok=True)
+        map_saver.write_text(STANDIN_MAP_SAVER)
+        map_saver.chmod(0o755)
+    return Path(destination)
+
+
+def user_environment(**extra):
+    """A plain user's shell environment: no ROS workspace sourced."""
+    env = {
+        "PATH": f"{ros_harness.VENV / 'bin'}:/usr/local/bin:/usr/bin:/bin",
+        "LANG": "C.UTF-8",
+        "HOME": os.environ.get("HOME", "/root"),
+        ros_harness.RUN_MARKER: ros_harness.RUN_ID,
+        "SNAPSIM_PASSENV": ros_harness.RUN_MARKER,
+    }
+    env.update({key: str(value) for key, value in extra.items()})
+    return env
+
+
+class SnapSystem:
+    """A snapsim system under `root`, driven through scripts/snapsim like a user drives `snap`."""
+
+    def __init__(self, root, build_dir=None, etc_environment=None):
+        self.root = Path(root)
+        (self.root / "etc").mkdir(parents=True, exist_ok=True)
+        if etc_environment:
+            (self.root / "etc" / "environment").write_text(
+                "".join(f"{key}={value}\n" for key, value in etc_environment.items()))
+        self.env = user_environment()
+        if build_dir is not None:
+            self.env["TURTLEBOT3C_BUILD_DIR"] = str(build_dir)
+
+    def snapsim(self, *args, check=True, env=None, timeout=240, input=None):
+        done = subprocess.run([str(SNAPSIM), "--root", str(self.root)] + [str(arg) for arg in args],
+                              env=dict(self.env, **(env or {})), capture_output=True, text=True,
+                              timeout=timeout, input=input)
+        if check and done.returncode != 0:
+            raise AssertionError(f"snapsim {' '.join(map(str, args))} failed ({done.returncode}):\n"
+                                 f"{done.stdout}\n{done.stderr}")
+        return done
+
+    def status(self, snap, app):
+        path = self.root / "run" / "snapsim" / "services" / f"snap.{snap}.{app}.json"
+        return json.loads(path.read_text()) if path.exists() else {"state": "inactive", "main_pid": None}
+
+    def wait_state(self, snap, app, states, timeout=60):
+        return wait_until(lambda: self.status(snap, app)["state"] in states and self.status(snap, app), timeout,
+                          lambda: f"{snap}.{app} never reached {states}: {self.status(snap, app)}\n"
+                                  f"{self.logs(snap)}")
+
+    def logs(self, snap, lines="all"):
+        return self.snapsim("logs", "-n", lines, snap, check=False).stdout
+
+    def config(self, snap):
+        return json.loads(self.snapsim("get", "-d", snap).stdout)
+
+    def mount(self, snap):
+        return self.root / "snap" / snap / "current"
+
+    def shutdown(self):
+        """Remove every snap (stopping its services), then kill anything of this root left behind."""
+        state_file = self.root / "var" / "lib" / "snapsim" / "state.json"
+        if state_file.exists():
+            for snap in json.loads(state_file.read_text())["snaps"]:
+                self.snapsim("remove", "--purge", snap, check=False)
+        for pid in processes_of(self.root):
+            ros_harness.kill_quietly(pid, signal.SIGKILL)
+
+
+def processes_of(root):
+    """Processes started for this snapsim root: services (by their cgroup marker) and supervisors."""
+    found = []
+    marker = f"@{Path(root).resolve()}".encode()
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            environ = (entry / "environ").read_bytes()
+            cmdline = (entry / "cmdline").read_bytes()
+            state = (entry / "stat").read_text().rsplit(")", 1)[1].split()[0]
+        except OSError:
+            continue
+        in_cgroup = any(item.startswith(b"SNAPSIM_CGROUP=") and item.endswith(marker) for item in environ.split(b"\0"))
+        supervisor = b"_supervise" in cmdline and str(Path(root).resolve()).encode() in cmdline
+        if state != "Z" and (in_cgroup or supervisor):
+            found.append(int(entry.name))
+    return found
+
+
+def pid_alive(pid):
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state not in ("Z", "X")
+
+
+def wait_for_file(path, timeout=60):
+    return wait_until(lambda: Path(path).exists(), timeout, f"{path} never appeared")
+
+
+def monotonic():
+    return time.monotonic()
+
+
+# --- a small snap exercising snapsim's snapd behaviour --------------------------------
+
+DEMO_SNAPCRAFT_YAML = """\
+name: demo
+base: core20
+version: '1.0'
+summary: snapsim's test snap
+description: Apps, services and hooks that record what snapd makes them do.
+grade: devel
+confinement: strict
+environment:
+  SNAP_LEVEL: $SNAP/level
+parts:
+  files:
+    plugin: dump
+    source: local/
+    organize:
+      '*.sh': usr/bin/
+apps:
+  svc:
+    command: usr/bin/service.sh
+    daemon: simple
+    stop-command: usr/bin/on_stop.sh
+    post-stop-command: usr/bin/on_post_stop.sh
+    stop-timeout: 10s
+    command-chain: [usr/bin/chain_one.sh, usr/bin/chain_two.sh]
+    extensions: [ros1-noetic]
+    environment:
+      APP_LEVEL: $SNAP_LEVEL/app
+  stubborn:
+    command: usr/bin/stubborn.sh
+    daemon: simple
+    install-mode: disable
+    stop-timeout: 1s
+  crasher:
+    command: usr/bin/exit_with.sh 3
+    daemon: simple
+    install-mode: disable
+  finisher:
+    command: usr/bin/exit_with.sh 0
+    daemon: simple
+    install-mode: disable
+  tool:
+    command: usr/bin/tool.sh $SNAP_NAME $UNSET_VARIABLE fixed
+    command-chain: [usr/bin/chain_one.sh]
+"""
+
+TRACE = 'echo "$1" >>"$SNAP_COMMON/trace"'
+DEMO_FILES = {
+    "local/trace.sh": f'#!/bin/sh\n{TRACE}\n',
+    "local/chain_one.sh": '#!/bin/sh\ntrace.sh chain_one\nexec "$@"\n',
+    "local/chain_two.sh": '#!/bin/sh\ntrace.sh chain_two\nexec "$@"\n',
+    # Sourced by ros1-launch; clobbers the positional parameters as catkin's setup files may.
+    "local/opt/ros/noetic/setup.bash": 'trace.sh ros1-launch\nset -- clobbered\n',
+    "local/service.sh": """#!/bin/bash
+trace.sh command
+env >"$SNAP_COMMON/service-env"
+echo "$$" >"$SNAP_COMMON/main.pid"
+setsid sleep 1000 &
+echo "$!" >"$SNAP_COMMON/grandchild.pid"
+trap 'trace.sh command-got-TERM; exit 0' TERM
+sleep 1000 &
+wait "$!"
+""",
+    "local/on_stop.sh": """#!/bin/sh
+trace.sh stop-command
+if kill -0 "$(cat "$SNAP_COMMON/main.pid")" 2>/dev/null; then trace.sh stop-command-saw-main-running; fi
+""",
+    "local/on_post_stop.sh": """#!/bin/sh
+trace.sh post-stop-command
+if ! kill -0 "$(cat "$SNAP_COMMON/main.pid")" 2>/dev/null; then trace.sh post-stop-saw-main-gone; fi
+""",
+    "local/stubborn.sh": """#!/bin/sh
+trap '' TERM
+echo "$$" >"$SNAP_COMMON/stubborn.pid"
+while :; do sleep 1; done
+""",
+    "local/exit_with.sh": '#!/bin/sh\ntrace.sh "started-$1"\nexit "$1"\n',
+    "local/tool.sh": '#!/bin/sh\nprintf "%s\\n" "$@" >"$SNAP_COMMON/tool-args"\nenv >"$SNAP_COMMON/tool-env"\n',
+    "snap/hooks/install": """#!/bin/sh
+set -e
+trace.sh "install-hook svc=$(snapctl services demo.svc | awk 'NR == 2 { print $3 }')"
+snapctl set color=red
+""",
+    "snap/hooks/configure": """#!/bin/sh
+set -e
+trace.sh "configure-hook svc=$(snapctl services demo.svc | awk 'NR == 2 { print $3 }')"
+case "$(snapctl get color)" in
+  red | blue) ;;
+  *) echo "color: '$(snapctl get color)' is not allowed; allowed values: red, blue" >&2; exit 1 ;;
+esac
+if [ "$(snapctl get restart-svc)" = "true" ]; then
+  snapctl restart demo.svc
+  sleep 1
+  trace.sh configure-end
+fi
+""",
+    "snap/hooks/post-refresh": '#!/bin/sh\ntrace.sh post-refresh-hook\n',
+}
+
+
+def make_demo_project(folder):
+    folder = Path(folder)
+    (folder / "snap").mkdir(parents=True)
+    (folder / "snap" / "snapcraft.yaml").write_text(DEMO_SNAPCRAFT_YAML)
+    for relative, text in DEMO_FILES.items():
+        path = folder / relative
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+        path.chmod(0o755 if text.startswith("#!") else 0o644)
+    return folder
+
+
+def trace(system, snap="demo"):
+    path = system.root / "var" / "snap" / snap / "common" / "trace"
+    return path.read_text().splitlines() if path.exists() else []
