@@ -4,7 +4,10 @@ The fake robot (simulation + fake OpenCR + fake LIDAR on ptys, turtlebot3c_sim)
 stands in for the hardware; its control socket pulls cables and injects faults.
 """
 import math
+import os
+import signal
 import time
+import xmlrpc.client
 
 import pytest
 
@@ -173,3 +176,23 @@ def test_lds02_burger_bringup_gives_the_same_scan_layout(make_master):
     assert sum(1 for value in scan["ranges"] if 0.16 <= value <= 3.5) > 100
     master.probe.wait_for_message("/odom", ODOMETRY, timeout=30)
     assert "turtlebot3_burger" in master.param("/robot_description")
+
+
+def node_pid(master, name):
+    code, _, uri = master.master_api().lookupNode("/test", name)
+    if code != 1:
+        return None
+    try:
+        return xmlrpc.client.ServerProxy(uri).getPid("/test")[2]
+    except OSError:
+        return None
+
+
+def test_a_killed_driver_is_respawned_and_odometry_resumes(robot):
+    master, _ = robot
+    probe = master.probe
+    pid = node_pid(master, "/turtlebot3_core")
+    assert pid
+    os.kill(pid, signal.SIGKILL)
+    wait_until(lambda: node_pid(master, "/turtlebot3_core") not in (None, pid), 30, "turtlebot3_core not respawned")
+    probe.wait_for_message("/odom", ODOMETRY, timeout=30)
