@@ -123,6 +123,8 @@ class Simulation:
         x, y, yaw = world.spawn_pose if pose is None else pose
         self._x, self._y, self._yaw = float(x), float(y), normalize_angle(float(yaw))
         self._footprint = np.asarray(self.model.footprint, float)
+        self._footprint_radius = float(np.hypot(self._footprint[:, 0], self._footprint[:, 1]).max())
+        self._free_motion = 0.0  # how far the footprint may still move without any obstacle check
         if self.footprint_collides(self._x, self._y, self._yaw):
             raise ValueError(f"start pose ({x:.3f}, {y:.3f}, {yaw:.3f}) overlaps an obstacle in {world.name}")
         self.time = 0.0
@@ -180,28 +182,41 @@ class Simulation:
 
     def _move(self, distance, rotation) -> float:
         """Move along the arc, or as far along it as the obstacles allow; the fraction done."""
-        target = _arc(self._x, self._y, self._yaw, distance, rotation)
         if distance == 0.0 and rotation == 0.0:
             return 1.0
-        if not self.footprint_collides(*target):
-            self._x, self._y, self._yaw = target[0], target[1], normalize_angle(target[2])
-            if self.in_contact:
-                self.in_contact = False
+        target = _arc(self._x, self._y, self._yaw, distance, rotation)
+        # No footprint point moves further than this, so far from obstacles no check is needed.
+        motion = abs(distance) + abs(rotation) * self._footprint_radius
+        if motion >= self._free_motion:
+            self._free_motion = self.world.clearance(self._x, self._y) - self._footprint_radius
+        if motion < self._free_motion:
+            self._free_motion -= motion
+            self._place(target, contact=False)
+            return 1.0
+        self._free_motion = 0.0
+        if not self._step_blocked(*target):
+            self._place(target, contact=False)
             return 1.0
         free, blocked = 0.0, 1.0
-        for _ in range(CONTACT_BISECTIONS):
+        if self._step_blocked(*_arc(self._x, self._y, self._yaw, distance / 2 ** CONTACT_BISECTIONS,
+                                    rotation / 2 ** CONTACT_BISECTIONS)):
+            blocked = 0.0  # pushing against the obstacle: not even the smallest step is free
+        while blocked - free > 1.0 / 2 ** CONTACT_BISECTIONS:
             middle = (free + blocked) / 2.0
-            if self.footprint_collides(*_arc(self._x, self._y, self._yaw, distance * middle, rotation * middle)):
+            if self._step_blocked(*_arc(self._x, self._y, self._yaw, distance * middle, rotation * middle)):
                 blocked = middle
             else:
                 free = middle
-        x, y, yaw = _arc(self._x, self._y, self._yaw, distance * free, rotation * free)
-        self._x, self._y, self._yaw = x, y, normalize_angle(yaw)
-        if not self.in_contact:
-            self.collisions += 1
-        self.in_contact = True
-        self.collided = True
+        self._place(_arc(self._x, self._y, self._yaw, distance * free, rotation * free), contact=True)
         return free
+
+    def _place(self, pose, contact):
+        self._x, self._y, self._yaw = pose[0], pose[1], normalize_angle(pose[2])
+        if contact and not self.in_contact:
+            self.collisions += 1
+        if contact:
+            self.collided = True
+        self.in_contact = contact
 
     def teleport(self, x: float, y: float, yaw: float):
         """Move the robot (ground truth only; odometry and encoders do not notice) and stop it."""
@@ -209,10 +224,15 @@ class Simulation:
             raise ValueError(f"pose ({x:.3f}, {y:.3f}, {yaw:.3f}) overlaps an obstacle in {self.world.name}")
         self._x, self._y, self._yaw = float(x), float(y), normalize_angle(float(yaw))
         self._linear = self._angular = 0.0
+        self._free_motion = 0.0
         self.in_contact = False
 
     def clear_collision(self):
         self.collided = False
+
+    def _step_blocked(self, x, y, yaw):
+        # Steps are short (MAX_SUBSTEP) and start from a free pose, so the boundary test suffices.
+        return self.world.polygon_boundary_touches(self.footprint_at(x, y, yaw))
 
     def footprint_collides(self, x: float, y: float, yaw: float) -> bool:
         return self.world.polygon_collides(self.footprint_at(x, y, yaw))

@@ -52,6 +52,8 @@ class World:
                 ends.append(np.roll(ring, -1, axis=0))
         self.segment_starts = np.concatenate(starts) if starts else np.zeros((0, 2))
         self.segment_ends = np.concatenate(ends) if ends else np.zeros((0, 2))
+        self._segment_vectors = self.segment_ends - self.segment_starts
+        self._segment_lengths_squared = np.maximum((self._segment_vectors ** 2).sum(axis=1), 1e-300)
         self._segment_lo = np.minimum(self.segment_starts, self.segment_ends)
         self._segment_hi = np.maximum(self.segment_starts, self.segment_ends)
         self.spawn_pose = tuple(float(value) for value in spawn_pose)
@@ -144,6 +146,19 @@ class World:
             np.minimum(best, np.abs(np.hypot(flat[:, 0] - center[0], flat[:, 1] - center[1]) - radius), out=best)
         return best.reshape(points.shape[:-1])
 
+    def clearance(self, x: float, y: float) -> float:
+        """Distance from (x, y) to the nearest obstacle boundary (np.inf in an empty world)."""
+        best = np.inf
+        if len(self.segment_starts):
+            rel = np.array([x, y]) - self.segment_starts
+            along = np.clip((rel * self._segment_vectors).sum(axis=1) / self._segment_lengths_squared, 0.0, 1.0)
+            gap = rel - along[:, None] * self._segment_vectors
+            best = math.sqrt(float((gap * gap).sum(axis=1).min()))
+        if len(self.circle_radii):
+            circles = np.hypot(self.circle_centers[:, 0] - x, self.circle_centers[:, 1] - y) - self.circle_radii
+            best = min(best, float(np.abs(circles).min()))
+        return best
+
     def collides(self, x: float, y: float, radius: float) -> bool:
         """Whether a disc of `radius` centred on (x, y) overlaps an obstacle."""
         point = np.array([[x, y]])
@@ -177,6 +192,47 @@ class World:
                 np.minimum(gaps, _distance_to_segment(self.circle_centers, start, end), out=gaps)
             if (centers_inside | (gaps < self.circle_radii)).any():
                 return True
+        return False
+
+    def polygon_boundary_touches(self, polygon) -> bool:
+        """Whether the edges of a closed polygon (K, 2) cross or touch an obstacle's boundary.
+
+        Enough for a robot moving in small steps from a free pose (nothing can get wholly
+        inside or around it without crossing an edge first), and much cheaper than
+        `polygon_collides`.
+        """
+        polygon = np.asarray(polygon, float)
+        lo, hi = polygon.min(axis=0), polygon.max(axis=0)
+        p0 = polygon
+        edges = np.concatenate((polygon[1:], polygon[:1])) - p0
+        near = ((self._segment_lo[:, 0] <= hi[0]) & (self._segment_hi[:, 0] >= lo[0])
+                & (self._segment_lo[:, 1] <= hi[1]) & (self._segment_hi[:, 1] >= lo[1]))
+        if near.any():
+            q0 = self.segment_starts[near]
+            e = self.segment_ends[near] - q0
+            rx = q0[None, :, 0] - p0[:, None, 0]
+            ry = q0[None, :, 1] - p0[:, None, 1]
+            dx, dy = edges[:, None, 0], edges[:, None, 1]
+            denominator = dx * e[None, :, 1] - dy * e[None, :, 0]
+            t = rx * e[None, :, 1] - ry * e[None, :, 0]  # times denominator
+            u = rx * dy - ry * dx
+            size = np.abs(denominator)
+            sign = np.sign(denominator)
+            t, u = t * sign, u * sign
+            if ((size > 0) & (t >= 0) & (t <= size) & (u >= 0) & (u <= size)).any():
+                return True
+        if len(self.circle_radii):
+            r = self.circle_radii
+            close = ((self.circle_centers[:, 0] + r >= lo[0]) & (self.circle_centers[:, 0] - r <= hi[0])
+                     & (self.circle_centers[:, 1] + r >= lo[1]) & (self.circle_centers[:, 1] - r <= hi[1]))
+            if close.any():
+                centers, radii = self.circle_centers[close], r[close]
+                rel = centers[None, :, :] - p0[:, None, :]
+                lengths = (edges * edges).sum(axis=1)[:, None]
+                along = np.clip((rel * edges[:, None, :]).sum(axis=2) / lengths, 0.0, 1.0)
+                gap = rel - along[:, :, None] * edges[:, None, :]
+                if ((gap * gap).sum(axis=2) <= radii[None, :] ** 2).any():
+                    return True
         return False
 
     def rasterize(self, resolution: float, origin_xy, width: int, height: int) -> np.ndarray:
