@@ -8,6 +8,7 @@ from ros_harness import wait_until
 from turtlebot3c_teleop.velocity_watchdog import VelocityWatchdog
 
 TWIST = "geometry_msgs/Twist"
+ODOMETRY = "nav_msgs/Odometry"
 
 
 def test_no_stop_before_any_command():
@@ -76,25 +77,43 @@ def last_moving_and_first_stop(probe, start):
     return entries[last_moving]["t"], stop["t"]
 
 
-def test_sigkilled_source_is_stopped_within_half_a_second(teleop):
-    # The simulator node (turtlebot3c_sim) did not exist when this was written: the
-    # test asserts on /cmd_vel, the topic the driver and the simulator both obey.
-    probe = teleop.probe
+@pytest.fixture(scope="module")
+def simulated_robot(teleop):
+    teleop.launch("turtlebot3c_sim", "turtlebot3_world.launch", "world:=empty", "noise:=none", "model:=burger")
+    teleop.wait_for_publisher("/sim/ground_truth", timeout=60)
+    return teleop
+
+
+def test_simulated_robot_stops_within_half_a_second_when_its_source_is_sigkilled(simulated_robot):
+    probe = simulated_robot.probe
     probe.call("/mux/select", {"topic": "key_vel"})
     probe.subscribe("/cmd_vel", TWIST)
+    probe.subscribe("/sim/ground_truth", ODOMETRY)
     start = probe.count("/cmd_vel")
-    source = teleop.start(["rostopic", "pub", "-r", "10", "/key_vel", TWIST, "{linear: {x: 0.15}}"],
-                          name="key_vel_source")
-    probe.wait_for_message("/cmd_vel", TWIST, start=start, where=lambda m: m["linear"]["x"] == 0.15)
+    source = simulated_robot.start(["rostopic", "pub", "-r", "10", "/key_vel", TWIST, "{linear: {x: 0.15}}"],
+                                   name="key_vel_source")
+    probe.wait_for_message("/sim/ground_truth", ODOMETRY, timeout=30,
+                           where=lambda m: m["twist"]["twist"]["linear"]["x"] == pytest.approx(0.15))
+    truth_start = probe.count("/sim/ground_truth")
     source.signal(signal.SIGKILL)
     killed_at = time.time()
     source.wait(10)
-    probe.wait_for_message("/cmd_vel", TWIST, start=start, timeout=5, where=lambda m: m["linear"]["x"] == 0.0)
-    last_command, stopped = last_moving_and_first_stop(probe, start)
-    assert stopped > killed_at
-    silence = stopped - last_command
-    assert 0.45 <= silence <= 0.5 + 0.3, f"zero came {silence:.3f} s after the last command"
-    print(f"stop latency after SIGKILL: {stopped - killed_at:.3f} s")
+    stopped = probe.wait_for_message("/sim/ground_truth", ODOMETRY, start=truth_start, timeout=5,
+                                     where=lambda m: m["twist"]["twist"]["linear"]["x"] == 0.0)
+    wait_until(lambda: probe.count("/sim/ground_truth") >= truth_start + 60, 20, "ground truth stopped coming")
+
+    truth = probe.timed_messages("/sim/ground_truth", truth_start)
+    stop_index = next(i for i, entry in enumerate(truth) if entry["msg"] == stopped)
+    robot_stopped_at = truth[stop_index]["t"]
+    x_at_stop = stopped["pose"]["pose"]["position"]["x"]
+    assert all(entry["msg"]["pose"]["pose"]["position"]["x"] == x_at_stop for entry in truth[stop_index:]), \
+        "the robot moved again after it stopped"
+    last_command, zero_sent = last_moving_and_first_stop(probe, start)
+    silence = zero_sent - last_command
+    assert 0.45 <= silence <= 0.5 + 0.3, f"the zero came {silence:.3f} s after the last command"
+    print(f"SIGKILL -> zero on /cmd_vel {zero_sent - killed_at:.3f} s, "
+          f"-> simulated robot at rest {robot_stopped_at - killed_at:.3f} s")
+    assert robot_stopped_at - killed_at <= 0.5 + 0.3
 
 
 def test_switching_to_a_silent_input_stops_the_robot(teleop):
