@@ -196,3 +196,15 @@ def test_a_killed_driver_is_respawned_and_odometry_resumes(robot):
     os.kill(pid, signal.SIGKILL)
     wait_until(lambda: node_pid(master, "/turtlebot3_core") not in (None, pid), 30, "turtlebot3_core not respawned")
     probe.wait_for_message("/odom", ODOMETRY, timeout=30)
+
+
+@pytest.mark.parametrize("executable, parameter, value, known", [
+    ("opencr_driver", "_model", "tractor", "burger, waffle, waffle_pi"),
+    ("lds_driver", "_lds_model", "LDS-03", "LDS-01, LDS-02"),
+])
+def test_an_unknown_model_stops_the_driver_with_the_known_ones(robot, executable, parameter, value, known):
+    master, _ = robot
+    driver = master.rosrun("turtlebot3c_bringup", executable, f"__name:=bad_{executable}", f"{parameter}:={value}")
+    wait_until(lambda: not driver.running(), 30, f"{executable} kept running with {value}")
+    assert driver.popen.returncode != 0
+    assert value in driver.log_text() and known in driver.log_text()
