@@ -20,7 +20,7 @@ from turtlebot3c_teleop.keyboard_teleop import (
     limits_for_model,
     split_keys,
 )
-from turtlebot3c_teleop.terminal import key_mode_attributes
+from turtlebot3c_teleop.terminal import key_mode, key_mode_attributes
 
 TWIST = "geometry_msgs/Twist"
 NODE = "/turtlebot3_teleop_keyboard"
@@ -139,6 +139,19 @@ def test_key_mode_turns_off_line_buffering_echo_and_signal_keys():
         for flag in (termios.ICANON, termios.ECHO, termios.ISIG):
             assert not mode[3] & flag
         assert mode[6][termios.VMIN] == 1
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+def test_key_mode_gives_the_terminal_back_when_an_exception_escapes():
+    master, slave = os.openpty()
+    try:
+        before = termios.tcgetattr(slave)
+        with pytest.raises(RuntimeError, match="boom"), key_mode(slave):
+            assert termios.tcgetattr(slave)[3] & termios.ICANON == 0
+            raise RuntimeError("boom")
+        assert termios.tcgetattr(slave) == before
     finally:
         os.close(master)
         os.close(slave)
