@@ -188,14 +188,19 @@ def node_pid(master, name):
         return None
 
 
-def test_a_killed_driver_is_respawned_and_odometry_resumes(robot):
+def test_a_killed_driver_is_respawned_and_its_odometry_continues(robot):
     master, _ = robot
     probe = master.probe
+    drive(probe, 0.1, 0.5, 1.0)  # somewhere away from the odometry's origin
+    time.sleep(1.0)  # the save (5 Hz) has the pose the robot stopped at
+    before = latest_odometry(probe)["position"]
+    assert math.hypot(before["x"], before["y"]) > 0.05
     pid = node_pid(master, "/turtlebot3_core")
     assert pid
     os.kill(pid, signal.SIGKILL)
     wait_until(lambda: node_pid(master, "/turtlebot3_core") not in (None, pid), 30, "turtlebot3_core not respawned")
-    probe.wait_for_message("/odom", ODOMETRY, timeout=30)
+    after = probe.wait_for_message("/odom", ODOMETRY, timeout=30)["pose"]["pose"]["position"]
+    assert math.hypot(after["x"] - before["x"], after["y"] - before["y"]) < 0.01
 
 
 @pytest.mark.parametrize("executable, parameter, value, known", [

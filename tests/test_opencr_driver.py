@@ -14,7 +14,7 @@ import pytest
 from ros_harness import wait_until
 from turtlebot3c_bringup import opencr_control_table as table
 from turtlebot3c_bringup.backoff import Backoff
-from turtlebot3c_bringup.opencr_driver import OpenCRDriver
+from turtlebot3c_bringup.opencr_driver import OpenCRDriver, saved_odometry_from_dict, saved_odometry_to_dict
 from turtlebot3c_bringup.opencr_link import OpenCRLink
 from turtlebot3c_description.models import get_model
 from turtlebot3c_sim import dynamixel_protocol as dxl
@@ -269,3 +269,39 @@ def test_a_board_that_never_answers_gets_a_firmware_hint(tmp_path):
     finally:
         runner.close()
         silent.unplug()
+
+
+def test_a_restarted_driver_resumes_the_odometry_of_the_one_that_died(board):
+    first, _ = start_driver(board)
+    wait_until(lambda: first.driver.connected and first.driver.saved_odometry is not None, 10, "no first driver")
+    for _ in range(10):
+        first.driver.command(0.2, 0.4)
+        time.sleep(0.1)
+    first._stop.set()  # dies without a goodbye: no zero command, the port just closes
+    first._thread.join(2.0)
+    first.driver.link.close()
+    saved = first.driver.saved_odometry
+    time.sleep(0.3)  # the robot coasts on while nobody watches (the board stops it after 0.5 s)
+    assert saved_odometry_from_dict(saved_odometry_to_dict(saved)) == saved
+    second, _ = start_driver(board, resume=saved_odometry_from_dict(saved_odometry_to_dict(saved)))
+    try:
+        wait_until(lambda: len(second.readings) > 3, 10, "second driver got no readings")
+        wait_until(lambda: board.sim.velocity == (0.0, 0.0), 5, "robot did not stop")
+        time.sleep(0.2)
+        with board.lock:
+            true_x, true_y, true_yaw = board.sim.pose
+        pose = second.driver.odometry.pose
+        # the odometry started at the sim's origin (0, 0, 0), so it must match the true pose,
+        # including the travel made while no driver ran
+        assert math.hypot(pose.x - true_x, pose.y - true_y) < 0.02
+        assert abs(pose.yaw - true_yaw) < 0.02
+        assert math.hypot(pose.x - saved.odometry.x, pose.y - saved.odometry.y) > 0.01
+    finally:
+        second.close()
+
+
+def test_saved_odometry_that_is_not_one_is_refused():
+    with pytest.raises(ValueError, match="not a saved odometry"):
+        saved_odometry_from_dict({"x": 1.0})
+    with pytest.raises(ValueError, match="not a saved odometry"):
+        saved_odometry_from_dict("garbage")

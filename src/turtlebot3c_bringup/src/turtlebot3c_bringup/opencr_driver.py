@@ -15,7 +15,7 @@ from turtlebot3c_bringup.opencr_control_table import encode_velocity_command
 from turtlebot3c_bringup.opencr_link import LinkError, LinkLost
 from turtlebot3c_bringup.opencr_sensors import SensorState, check_device, decode_sensor_block
 from turtlebot3c_bringup.velocity_command import clamp_to_model
-from turtlebot3c_bringup.wheel_odometry import WheelOdometry
+from turtlebot3c_bringup.wheel_odometry import Snapshot, WheelOdometry
 from turtlebot3c_description.models import RobotModel
 
 HEARTBEAT_PERIOD = 0.1  # s; the firmware stops the motors after 0.5 s without a heartbeat change
@@ -27,6 +27,32 @@ class Reading(NamedTuple):
     stamp: float  # the driver clock's time of the read
     sensors: SensorState
     odometry_updated: bool  # False for a baseline reading (first one after a (re)connection)
+
+
+class SavedOdometry(NamedTuple):
+    """The odometry as a restarted driver can resume it, with the board clock it was read at."""
+    odometry: Snapshot
+    board_millis: int
+
+
+def saved_odometry_to_dict(saved: SavedOdometry) -> dict:
+    """Plain values for the parameter server (no None: XML-RPC has no null)."""
+    values = {key: value for key, value in saved.odometry._asdict().items() if value is not None}
+    values["board_millis"] = saved.board_millis
+    return values
+
+
+def saved_odometry_from_dict(values) -> SavedOdometry:
+    """The inverse of saved_odometry_to_dict; ValueError when `values` is not one."""
+    try:
+        fields = {name: values.get(name) for name in Snapshot._fields}
+        numbers = {name: float(value) for name, value in fields.items()
+                   if name not in ("left_ticks", "right_ticks", "imu_yaw")}
+        snapshot = Snapshot(left_ticks=int(fields["left_ticks"]), right_ticks=int(fields["right_ticks"]),
+                            imu_yaw=None if fields["imu_yaw"] is None else float(fields["imu_yaw"]), **numbers)
+        return SavedOdometry(snapshot, int(values["board_millis"]))
+    except (AttributeError, KeyError, TypeError, ValueError) as error:
+        raise ValueError(f"not a saved odometry: {values!r} ({error})") from None
 
 
 class LinkStatistics:
@@ -56,7 +82,9 @@ class _PrintLog:
 
 class OpenCRDriver:
     def __init__(self, link, model: RobotModel, use_imu_yaw: bool = True, clock=time.monotonic, log=None,
-                 command_timeout: float = COMMAND_TIMEOUT, backoff: Optional[Backoff] = None):
+                 command_timeout: float = COMMAND_TIMEOUT, backoff: Optional[Backoff] = None,
+                 resume: Optional[SavedOdometry] = None):
+        """`resume`: the `saved_odometry` of a driver that died, to continue its odometry without a jump."""
         self.link = link
         self.model = model
         self.clock = clock
@@ -68,6 +96,8 @@ class OpenCRDriver:
                                       model.max_linear_velocity / model.wheel_radius, use_imu_yaw=use_imu_yaw)
         self.device_info = None
         self.connected = False
+        self.saved_odometry = None  # refreshed after every reading
+        self._resume = resume
         self._next_attempt = 0.0
         self._lost_since = None
         self._attempts = 0
@@ -172,7 +202,14 @@ class OpenCRDriver:
         self._failures = 0
         self.stats.reads += 1
         sensors = decode_sensor_block(block)
+        if self._resume is not None:
+            # The board's clock only runs on while it has not been reset: then its counters are the same.
+            self.odometry.restore(self._resume.odometry, same_encoders=sensors.millis >= self._resume.board_millis)
+            self._resume = None
         updated = self.odometry.update(sensors.encoder_ticks[0], sensors.encoder_ticks[1], now, sensors.imu_yaw)
+        snapshot = self.odometry.snapshot()
+        if snapshot is not None:
+            self.saved_odometry = SavedOdometry(snapshot, sensors.millis)
         return Reading(now, sensors, updated)
 
     def _keep_alive(self, now):

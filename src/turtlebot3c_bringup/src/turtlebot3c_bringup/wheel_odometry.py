@@ -29,6 +29,19 @@ def normalize_angle(angle: float) -> float:
     return math.atan2(math.sin(angle), math.cos(angle))
 
 
+class Snapshot(NamedTuple):
+    """What a restarted driver needs to continue the odometry of the one before it."""
+    x: float
+    y: float
+    yaw: float
+    left_wheel: float  # rad, accumulated
+    right_wheel: float
+    left_ticks: int  # the encoder reading the pose belongs to
+    right_ticks: int
+    imu_yaw: Optional[float]
+    stamp: float  # monotonic clock (system-wide, so comparable across processes)
+
+
 class WheelOdometry:
     def __init__(self, wheel_radius: float, wheel_separation: float, max_wheel_speed: float,
                  use_imu_yaw: bool = True, plausible_speed_factor: float = 3.0):
@@ -57,6 +70,23 @@ class WheelOdometry:
     def reset(self, pose: Optional[Pose2D] = None):
         self.pose = pose or Pose2D(0.0, 0.0, 0.0)
         self.rebaseline()
+
+    def snapshot(self) -> Optional[Snapshot]:
+        if self._last_ticks is None:
+            return None
+        return Snapshot(self.pose.x, self.pose.y, self.pose.yaw, self.wheel_positions[0], self.wheel_positions[1],
+                        self._last_ticks[0], self._last_ticks[1], self._last_imu_yaw, self._last_stamp)
+
+    def restore(self, snapshot: Snapshot, same_encoders: bool):
+        """Continue from a snapshot: from its encoder reading when the counters are the same ones
+        (the board was not reset since), else from its pose only, the next reading being a new baseline."""
+        self.pose = Pose2D(snapshot.x, snapshot.y, snapshot.yaw)
+        self.wheel_positions = (snapshot.left_wheel, snapshot.right_wheel)
+        self.rebaseline()
+        if same_encoders:
+            self._last_ticks = (snapshot.left_ticks, snapshot.right_ticks)
+            self._last_imu_yaw = snapshot.imu_yaw
+            self._last_stamp = snapshot.stamp
 
     def update(self, left_ticks: int, right_ticks: int, stamp: float, imu_yaw: Optional[float] = None) -> bool:
         """Integrate one reading taken at `stamp` (s). False when it only set the baseline."""
