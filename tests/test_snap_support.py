@@ -306,3 +306,43 @@ def make_demo_project(folder):
 def trace(system, snap="demo"):
     path = system.root / "var" / "snap" / snap / "common" / "trace"
     return path.read_text().splitlines() if path.exists() else []
+
+
+# --- the real turtlebot3c snap against a test roscore -----------------------------------
+
+MAP_FOLDER = "root/snap/turtlebot3c/common/map"  # $SNAP_USER_COMMON/map of the services (root)
+
+
+def install_turtlebot3c(folder, master):
+    """Install this repository's snap in a snapsim root whose services use `master`.
+
+    /etc/environment gives the services the test master's URI, as an owner could
+    give theirs; ros_network.sh leaves a URI given on purpose alone.
+    """
+    folder = Path(folder)
+    build = install_space_with_standins(folder / "build")
+    system = SnapSystem(folder / "root", build_dir=build, etc_environment={
+        "ROS_MASTER_URI": master.uri, "ROS_HOSTNAME": "127.0.0.1"})
+    system.snapsim("install", REPO, "--dangerous")
+    system.wait_state("turtlebot3c", "teleop", ["active"])
+    master.wait_for_service("/mux/select", timeout=60)
+    return system
+
+
+def main_command_line(system, app):
+    """The command line of a service's main process once its chain has exec'd roslaunch."""
+    def launched():
+        pid = system.wait_state("turtlebot3c", app, ["active"])["main_pid"]
+        try:
+            words = Path(f"/proc/{pid}/cmdline").read_bytes().decode().rstrip("\0").split("\0")
+        except OSError:
+            return None
+        return words if any(word.endswith("/roslaunch") for word in words) else None
+    return wait_until(launched, 60, lambda: f"{app} never exec'd roslaunch:\n{system.logs('turtlebot3c')}")
+
+
+def selected_mux_input(master, expected, timeout=30):
+    """Wait until /mux/selected says `expected` (the mux latches its last selection)."""
+    message = master.probe.wait_for_message("/mux/selected", "std_msgs/String", timeout=timeout,
+                                            where=lambda message: message["data"] == expected, start=0)
+    return message["data"]
