@@ -57,6 +57,14 @@ def test_odometry_scan_joint_states_and_tf_are_published(robot):
     assert sum(1 for value in scan["ranges"] if 0.12 <= value <= 3.5) > 100  # turtlebot3_world has walls around
     joints = probe.wait_for_message("/joint_states", JOINTS)
     assert joints["name"] == ["wheel_left_joint", "wheel_right_joint"]
+    imu = probe.wait_for_message("/imu", "sensor_msgs/Imu")
+    assert imu["header"]["frame_id"] == "imu_link"
+    assert imu["linear_acceleration"]["z"] == pytest.approx(9.8, abs=0.3)
+    battery = probe.wait_for_message("/battery_state", "sensor_msgs/BatteryState")
+    assert battery["voltage"] == pytest.approx(12.0) and battery["present"]
+    assert 0.0 <= battery["percentage"] <= 1.0
+    buttons = probe.wait_for_message("/buttons", "sensor_msgs/Joy", start=0)  # latched
+    assert buttons["buttons"] == [0, 0, 0, 0]
     assert "/turtlebot3_core" in master.publishers("/tf")
     assert "/robot_state_publisher" in master.node_names()
     assert master.param("/robot_description").count("turtlebot3_waffle_pi") >= 1

@@ -98,8 +98,9 @@ def fill_battery_state(message, sensors, stamp):
     message.power_supply_status = message.POWER_SUPPLY_STATUS_DISCHARGING if message.present \
         else message.POWER_SUPPLY_STATUS_UNKNOWN
     message.power_supply_health = message.POWER_SUPPLY_HEALTH_UNKNOWN
-    message.charge = message.capacity = float("nan")
-    message.current = float("nan")
+    message.charge = message.capacity = message.current = float("nan")  # not measured by the board
+    if hasattr(message, "temperature"):  # noetic's BatteryState has it, melodic's not
+        message.temperature = float("nan")
     message.cell_voltage = [sensors.battery_voltage / BATTERY_CELLS] * BATTERY_CELLS if message.present else []
     return message
 
