@@ -30,6 +30,7 @@ SCAN_RATE = 5.0  # Hz, LDS-01 and Gazebo
 GRAVITY = 9.80665
 MAX_SUBSTEP = 0.02  # s; longer steps are split so accelerations and contacts stay accurate
 CONTACT_BISECTIONS = 8
+CLEARANCE_MARGIN = 0.5  # m; obstacles are checked again after the footprint may have moved this far
 
 
 class NoiseConfig(NamedTuple):
@@ -187,14 +188,12 @@ class Simulation:
         target = _arc(self._x, self._y, self._yaw, distance, rotation)
         # No footprint point moves further than this, so far from obstacles no check is needed.
         motion = abs(distance) + abs(rotation) * self._footprint_radius
-        if motion >= self._free_motion:
-            self._free_motion = self.world.clearance(self._x, self._y) - self._footprint_radius
         if motion < self._free_motion:
             self._free_motion -= motion
             self._place(target, contact=False)
             return 1.0
-        self._free_motion = 0.0
-        if not self._step_blocked(*target):
+        self._free_motion = self.world.polygon_clearance(self.footprint_at(*target), CLEARANCE_MARGIN)
+        if self._free_motion > 0.0:
             self._place(target, contact=False)
             return 1.0
         free, blocked = 0.0, 1.0

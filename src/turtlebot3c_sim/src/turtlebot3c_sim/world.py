@@ -235,6 +235,37 @@ class World:
                     return True
         return False
 
+    def polygon_clearance(self, polygon, margin: float) -> float:
+        """Distance between the boundary of a closed polygon (K, 2) and the nearest obstacle, capped at
+        `margin`; 0 when they touch or cross. Like `polygon_boundary_touches`, it looks at boundaries only.
+        """
+        polygon = np.asarray(polygon, float)
+        lo, hi = polygon.min(axis=0) - margin, polygon.max(axis=0) + margin
+        edges = np.concatenate((polygon[1:], polygon[:1])) - polygon
+        edge_lengths = (edges * edges).sum(axis=1)
+        best = margin
+        near = ((self._segment_lo[:, 0] <= hi[0]) & (self._segment_hi[:, 0] >= lo[0])
+                & (self._segment_lo[:, 1] <= hi[1]) & (self._segment_hi[:, 1] >= lo[1]))
+        if near.any():
+            if self.polygon_boundary_touches(polygon):
+                return 0.0
+            starts, vectors = self.segment_starts[near], self._segment_vectors[near]
+            # Polygon corners to obstacle segments, obstacle segment ends to polygon edges.
+            best = min(best, _point_segment_distances(polygon, starts, vectors, self._segment_lengths_squared[near]))
+            ends = np.concatenate((starts, self.segment_ends[near]))
+            best = min(best, _point_segment_distances(ends, polygon, edges, edge_lengths))
+        if len(self.circle_radii):
+            r = self.circle_radii
+            close = ((self.circle_centers[:, 0] + r >= lo[0]) & (self.circle_centers[:, 0] - r <= hi[0])
+                     & (self.circle_centers[:, 1] + r >= lo[1]) & (self.circle_centers[:, 1] - r <= hi[1]))
+            if close.any():
+                rel = self.circle_centers[close][:, None, :] - polygon[None, :, :]
+                along = np.clip((rel * edges[None, :, :]).sum(axis=2) / edge_lengths[None, :], 0.0, 1.0)
+                gap = rel - along[:, :, None] * edges[None, :, :]
+                distances = np.sqrt((gap * gap).sum(axis=2).min(axis=1)) - r[close]
+                best = min(best, float(distances.min()))
+        return max(0.0, best)
+
     def rasterize(self, resolution: float, origin_xy, width: int, height: int) -> np.ndarray:
         """Occupied cells of a grid (height, width); row = y index, column = x index.
 
@@ -259,6 +290,14 @@ def _inside_rings(points, rings) -> np.ndarray:
                 crossing_x = x0 + (py - y0) * (x1 - x0) / (y1 - y0)
             inside ^= straddles & (px < crossing_x)
     return inside
+
+
+def _point_segment_distances(points, starts, vectors, lengths_squared) -> float:
+    """Smallest distance from any of the points (N, 2) to any of the segments (starts, vectors: (K, 2))."""
+    rel = points[:, None, :] - starts[None, :, :]
+    along = np.clip((rel * vectors[None, :, :]).sum(axis=2) / lengths_squared[None, :], 0.0, 1.0)
+    gap = rel - along[:, :, None] * vectors[None, :, :]
+    return math.sqrt(float((gap * gap).sum(axis=2).min()))
 
 
 def _distance_to_segment(points, start, end) -> np.ndarray:
