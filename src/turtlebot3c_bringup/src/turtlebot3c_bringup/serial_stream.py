@@ -24,6 +24,7 @@ class SerialStream:
         self.last_error = ""
         self._next_attempt = 0.0
         self._reported = False
+        self._closed = False  # closed for good (node shutdown): no more reopening, no error reports
 
     @property
     def is_open(self) -> bool:
@@ -54,11 +55,13 @@ class SerialStream:
 
     def read(self, size: int = 4096) -> bytes:
         """Bytes available now (waits up to 0.1 s); b"" while the device is missing."""
-        if self.serial is None and not self._open():
+        if self._closed or (self.serial is None and not self._open()):
             return b""
         try:
             return self.serial.read(max(1, min(size, self.serial.in_waiting)))
-        except DEVICE_ERRORS as error:
+        except DEVICE_ERRORS + (AttributeError, TypeError) as error:  # (closed under our feet at shutdown)
+            if self._closed:
+                return b""
             self.losses += 1
             self.last_error = str(error)
             self._report("error", f"lost {self.port}: {error}; reopening with backoff")
@@ -76,6 +79,7 @@ class SerialStream:
         self.serial = None
 
     def close(self):
+        self._closed = True
         if self.serial is not None and self.on_close:
             try:
                 self.serial.write(self.on_close)
