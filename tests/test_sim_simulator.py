@@ -99,3 +99,13 @@ def test_unknown_world_stops_the_launch_with_a_clear_message(make_master):
     launch = master.launch("turtlebot3c_sim", "turtlebot3_world.launch", "world:=moon_base")
     wait_until(lambda: not launch.running(), 60, "the launch kept running with an unknown world")
     assert "unknown world 'moon_base'; known worlds:" in launch.log_text()
+
+
+def test_publish_clock_runs_the_node_on_simulated_time(make_master):
+    master = make_master()
+    master.launch("turtlebot3c_sim", "turtlebot3_world.launch", "publish_clock:=true", "world:=empty")
+    clock = master.probe.wait_for_message("/clock", "rosgraph_msgs/Clock", timeout=30,
+                                          where=lambda m: m["clock"] > 0.5)
+    scan = master.probe.wait_for_message("/scan", "sensor_msgs/LaserScan", timeout=30)
+    # Simulated seconds since the simulator started, not the wall clock's 1.7e9.
+    assert clock["clock"] < 100 and 0.5 < scan["header"]["stamp"] < 100

@@ -8,9 +8,9 @@ set until `clear_collision()`, and `collisions` counts contacts.
 
 Sensors follow the real robot: wheel encoders see the wheels turn (including
 slip, which the ground does not see), the IMU's heading drifts slowly, and
-odometry integrates encoder distance with IMU heading exactly as the OpenCR
-driver does (along exact arcs rather than the driver's midpoint rule), starting at the initial world pose (as Gazebo's
-`odometrySource world`). Each noise source has its own random stream derived
+odometry integrates encoder distance with IMU heading as the OpenCR driver
+does (along exact arcs rather than the driver's midpoint rule), starting at
+the initial world pose (as Gazebo's `odometrySource world`). Each noise source has its own random stream derived
 from the seed, so the same seed and the same commands and steps give the same
 run, and taking more or fewer scans does not change the motion.
 """
