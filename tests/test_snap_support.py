@@ -341,8 +341,14 @@ def main_command_line(system, app):
     return wait_until(launched, 60, lambda: f"{app} never exec'd roslaunch:\n{system.logs('turtlebot3c')}")
 
 
-def selected_mux_input(master, expected, timeout=30):
-    """Wait until /mux/selected says `expected` (the mux latches its last selection)."""
+def mux_mark(master):
+    """How many /mux/selected messages the probe has seen: selections after this are new."""
+    master.probe.subscribe("/mux/selected", "std_msgs/String")
+    return master.probe.count("/mux/selected")
+
+
+def selected_mux_input(master, expected, since, timeout=30):
+    """Wait until /mux/selected says `expected` in a message received after mark `since`."""
     message = master.probe.wait_for_message("/mux/selected", "std_msgs/String", timeout=timeout,
-                                            where=lambda message: message["data"] == expected, start=0)
+                                            where=lambda message: message["data"] == expected, start=since)
     return message["data"]

@@ -1,0 +1,159 @@
+"""Mapping, navigation and the mux through the snap's own scripts, daemons and command-chains."""
+import os
+
+import pytest
+from test_snap_support import (
+    MAP_FOLDER,
+    install_turtlebot3c,
+    main_command_line,
+    mux_mark,
+    selected_mux_input,
+    user_environment,
+)
+
+from ros_harness import wait_until
+
+MAP = {"header": {"frame_id": "map"},
+       "info": {"resolution": 0.05, "width": 4, "height": 3, "origin": {"position": {"x": -1.0, "y": -2.0}}},
+       "data": [0, 0, 100, -1] * 3}
+
+
+@pytest.fixture(scope="module")
+def system(ros_master, tmp_path_factory):
+    system = install_turtlebot3c(tmp_path_factory.mktemp("snap-maps"), ros_master)
+    yield system
+    system.shutdown()
+
+
+@pytest.fixture
+def maps(system):
+    """The services' map folder, emptied for the test."""
+    folder = system.root / MAP_FOLDER
+    folder.mkdir(parents=True, exist_ok=True)
+    for path in folder.iterdir():
+        path.unlink()
+    return folder
+
+
+def shell(system, app, script, master_uri, check=True, **env):
+    """`snap run --shell turtlebot3c.<app> -c script` as root on the robot, against `master_uri`."""
+    environment = user_environment(ROS_MASTER_URI=master_uri, ROS_HOSTNAME="127.0.0.1", **env)
+    environment["TURTLEBOT3C_BUILD_DIR"] = system.env["TURTLEBOT3C_BUILD_DIR"]
+    return system.snapsim("run", "--shell", f"turtlebot3c.{app}", "-c", script, env=environment, check=check)
+
+
+def saved_map(maps, name="new_map"):
+    """Files as save_map.sh leaves them for install_last_map.sh."""
+    (maps / f"{name}.pgm").write_bytes(b"P5\n4 3\n255\n" + bytes(12))
+    (maps / f"{name}.yaml").write_text(f"image: /somewhere/{name}.pgm\nresolution: 0.05\n"
+                                       "origin: [0.0, 0.0, 0.0]\nnegate: 0\noccupied_thresh: 0.65\n"
+                                       "free_thresh: 0.196\n")
+
+
+def dated_maps(maps):
+    return sorted(path.name for path in maps.glob("*.yaml") if path.name != "current_map.yaml")
+
+
+def test_key_and_joy_select_their_mux_input_through_their_chain(system, ros_master):
+    mark = mux_mark(ros_master)
+    shell(system, "joy", "true", ros_master.uri)
+    assert selected_mux_input(ros_master, "joy_vel", since=mark) == "joy_vel"
+    mark = mux_mark(ros_master)
+    shell(system, "key", "true", ros_master.uri)
+    assert selected_mux_input(ros_master, "key_vel", since=mark) == "key_vel"
+
+
+def test_mux_selection_fails_clearly_when_teleop_is_not_running(system, ros_master):
+    system.snapsim("stop", "turtlebot3c.teleop")
+    try:
+        done = shell(system, "key", "echo RAN", ros_master.uri, check=False, MUX_SELECT_TIMEOUT=2)
+    finally:
+        system.snapsim("start", "turtlebot3c.teleop")
+        ros_master.wait_for_service("/mux/select", timeout=60)
+    assert done.returncode == 1 and "RAN" not in done.stdout
+    assert "could not select 'key_vel': /mux/select did not answer within 2 s" in done.stderr
+    assert "sudo snap start turtlebot3c.teleop" in done.stderr
+
+
+def test_mapping_stop_saves_a_dated_map_and_makes_it_current(system, ros_master, maps):
+    ros_master.probe.publish("/map", "nav_msgs/OccupancyGrid", MAP, latch=True)
+    shell(system, "joy", "true", ros_master.uri)
+    mark = mux_mark(ros_master)
+    system.snapsim("start", "turtlebot3c.mapping")
+    assert "model:=waffle_pi" in main_command_line(system, "mapping")
+    assert selected_mux_input(ros_master, "key_vel", since=mark) == "key_vel"
+    system.snapsim("stop", "turtlebot3c.mapping")
+    [dated] = dated_maps(maps)
+    stem = dated[:-len(".yaml")]
+    assert os.readlink(maps / "current_map.yaml") == dated
+    assert f"image: {stem}.pgm" in (maps / dated).read_text().splitlines()
+    assert (maps / f"{stem}.pgm").read_bytes().startswith(b"P5")
+    assert sorted(path.name for path in maps.iterdir()) == sorted([dated, f"{stem}.pgm", "current_map.yaml"])
+    logs = system.logs("turtlebot3c.mapping")
+    assert "save_map: map saved" in logs and f"install_last_map: {maps}/{dated} is now the current map" in logs
+
+
+def test_mapping_stop_saves_the_map_even_when_teleop_is_down(system, ros_master, maps):
+    ros_master.probe.publish("/map", "nav_msgs/OccupancyGrid", MAP, latch=True)
+    system.snapsim("start", "turtlebot3c.mapping")
+    main_command_line(system, "mapping")
+    system.snapsim("stop", "turtlebot3c.teleop")
+    try:
+        system.snapsim("stop", "turtlebot3c.mapping")
+    finally:
+        system.snapsim("start", "turtlebot3c.teleop")
+        ros_master.wait_for_service("/mux/select", timeout=60)
+    assert len(dated_maps(maps)) == 1 and (maps / "current_map.yaml").exists()
+
+
+def test_stop_with_no_new_map_keeps_previous_current_map(system, make_master, maps):
+    saved_map(maps)
+    quiet = make_master()  # a master where nobody publishes /map
+    shell(system, "mapping", "install_last_map.sh", quiet.uri)
+    previous = os.readlink(maps / "current_map.yaml")
+    done = shell(system, "mapping", "save_map.sh; install_last_map.sh", quiet.uri, check=False)
+    assert os.readlink(maps / "current_map.yaml") == previous
+    assert dated_maps(maps) == [previous]
+    assert "save_map: the map could not be saved" in done.stderr
+    assert f"no new map was saved; the current map stays {previous}" in done.stderr
+    assert not list(maps.glob(".saving*")) and not list(maps.glob("new_map*"))
+
+
+def test_maps_saved_within_one_second_get_distinct_names_and_all_are_kept(system, ros_master, maps):
+    script = "for n in 1 2 3; do cp -p \"$1/new.pgm\" \"$1/new_map.pgm\"; cp -p \"$1/new.yaml\" \"$1/new_map.yaml\";" \
+             " install_last_map.sh; done"
+    saved_map(maps, "new")
+    environment = user_environment(ROS_MASTER_URI=ros_master.uri, ROS_HOSTNAME="127.0.0.1")
+    environment["TURTLEBOT3C_BUILD_DIR"] = system.env["TURTLEBOT3C_BUILD_DIR"]
+    system.snapsim("run", "--shell", "turtlebot3c.mapping", "-c", script, "_", str(maps), env=environment)
+    names = dated_maps(maps)
+    names.remove("new.yaml")
+    assert len(names) == 3
+    assert os.readlink(maps / "current_map.yaml") == sorted(names, key=lambda name: (len(name), name))[-1]
+    for name in names:
+        assert (maps / name).read_text().splitlines()[0] == f"image: {name[:-len('.yaml')]}.pgm"
+    assert not list(maps.glob(".*"))
+
+
+def test_navigation_without_a_map_refuses_clearly_and_is_not_restarted(system, ros_master, maps):
+    mark = mux_mark(ros_master)
+    system.snapsim("start", "turtlebot3c.navigation")
+    status = system.wait_state("turtlebot3c", "navigation", ["inactive", "failed"])
+    assert status["state"] == "inactive" and status["starts"] == 1 and status["restarts"] == 0
+    assert "navigation: no map to navigate on" in system.logs("turtlebot3c.navigation")
+    assert selected_mux_input(ros_master, "nav_vel", since=mark) == "nav_vel"
+    assert selected_mux_input(ros_master, "key_vel", since=mark + 1) == "key_vel"  # handed back by post-stop
+
+
+def test_navigation_drives_through_nav_vel_and_hands_back_key_vel_when_stopped(system, ros_master, maps):
+    saved_map(maps)
+    shell(system, "mapping", "install_last_map.sh", ros_master.uri)
+    mark = mux_mark(ros_master)
+    system.snapsim("start", "turtlebot3c.navigation")
+    words = main_command_line(system, "navigation")
+    assert f"map_file:={maps}/current_map.yaml" in words and "model:=waffle_pi" in words
+    assert selected_mux_input(ros_master, "nav_vel", since=mark) == "nav_vel"
+    mark = mux_mark(ros_master)
+    system.snapsim("stop", "turtlebot3c.navigation")
+    assert selected_mux_input(ros_master, "key_vel", since=mark) == "key_vel"
+    wait_until(lambda: system.status("turtlebot3c", "navigation")["state"] == "inactive", 10, "navigation still up")
