@@ -235,6 +235,7 @@ apps:
   tool:
     command: usr/bin/tool.sh $SNAP_NAME $UNSET_VARIABLE fixed
     command-chain: [usr/bin/chain_one.sh]
+    plugs: [network, joystick]
 """
 
 TRACE = 'echo "$1" >>"$SNAP_COMMON/trace"'

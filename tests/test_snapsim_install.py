@@ -1,6 +1,7 @@
 """snapsim's install, run, remove and lint: snapd's order, environment and data handling."""
 import os
 import subprocess
+import threading
 from pathlib import Path
 
 import pytest
@@ -132,3 +133,33 @@ def test_lint_accepts_the_demo_and_names_each_problem_of_a_broken_snap(system, p
     assert "hook not-a-hook: unknown hook name" in problems
     assert "app svc: command-chain: usr/bin/chain_two.sh is not executable" in problems
     assert "usr/bin/outside: symlink to /etc/passwd points outside the snap" in problems
+
+
+def test_connections_auto_connect_network_and_connect_joystick_on_request(system, project):
+    system.snapsim("install", project, "--dangerous")
+
+    def rows():
+        lines = system.snapsim("connections", "demo").stdout.splitlines()[1:]
+        return {line.split()[1]: line.split()[2] for line in lines}
+    assert rows() == {"demo:joystick": "-", "demo:network": ":network"}
+    is_connected = 'snapctl is-connected joystick && echo yes || echo no'
+    assert system.snapsim("run", "--shell", "demo.tool", "-c", is_connected).stdout.strip() == "no"
+    system.snapsim("connect", "demo:joystick")
+    assert rows()["demo:joystick"] == ":joystick"
+    assert system.snapsim("run", "--shell", "demo.tool", "-c", is_connected).stdout.strip() == "yes"
+
+
+def test_logs_follow_prints_new_lines_as_they_come(system, project):
+    system.snapsim("install", project, "--dangerous")
+    follower = subprocess.Popen([str(SNAPSIM), "--root", str(system.root), "logs", "-f", "-n", "0", "demo.svc"],
+                                env=system.env, stdout=subprocess.PIPE, text=True)
+    watchdog = threading.Timer(60, follower.kill)
+    watchdog.start()
+    try:
+        system.snapsim("stop", "demo.svc")
+        lines = iter(follower.stdout.readline, "")
+        assert any("Stopped Service for snap application demo.svc." in line for line in lines)
+    finally:
+        watchdog.cancel()
+        follower.kill()
+        follower.wait()
