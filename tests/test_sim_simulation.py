@@ -3,6 +3,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from turtlebot3c_description.models import get_model
 from turtlebot3c_sim.simulation import NoiseConfig, Simulation
@@ -213,3 +215,16 @@ def test_scan_noise_has_the_configured_spread():
     errors = np.concatenate([sim.scan().ranges - truth for _ in range(20)])
     assert abs(errors.mean()) < 0.002
     assert errors.std() == pytest.approx(0.01, rel=0.1)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.tuples(st.floats(-0.3, 0.3), st.floats(-2.0, 2.0), st.floats(0.05, 1.5)), min_size=1, max_size=12),
+       st.sampled_from(["burger", "waffle"]))
+def test_no_command_sequence_drives_the_footprint_into_an_obstacle(commands, model):
+    world = load_world("turtlebot3_world")
+    sim = Simulation(world, model=model, seed=0)
+    for linear, angular, seconds in commands:
+        sim.set_command(linear, angular)
+        for _ in range(int(seconds / 0.05)):
+            sim.step(0.05)
+            assert not world.polygon_collides(sim.footprint_at(*sim.pose))

@@ -158,3 +158,17 @@ def test_house_rooms_are_all_reachable_and_there_is_a_loop():
                for c, r in zip(house.circle_centers, house.circle_radii)]
             + [{"type": "box", "center": [x, y], "size": [1.2, 1.2]}]})
         assert house_rooms_reachable(blocked) == [True] * 4, f"door at {(x, y)}"
+
+
+def test_polygon_clearance_is_the_gap_to_the_nearest_obstacle_capped_at_the_margin():
+    world = world_from_description({"obstacles": [
+        {"type": "wall", "from": [1.0, -5.0], "to": [1.0, 5.0], "thickness": 0.1},
+        {"type": "circle", "center": [-1.0, 0.0], "radius": 0.2}]})
+    square = np.array([[-0.1, -0.1], [0.1, -0.1], [0.1, 0.1], [-0.1, 0.1]])
+    assert world.polygon_clearance(square, 1.0) == pytest.approx(0.7)  # the pillar: 1.0 - 0.2 - 0.1
+    assert world.polygon_clearance(square + (0.5, 0.0), 1.0) == pytest.approx(0.35)  # the wall face at 0.95
+    assert world.polygon_clearance(square, 0.25) == 0.25
+    assert world.polygon_clearance(square + (0.9, 0.0), 1.0) == 0.0
+    assert world.polygon_boundary_touches(square + (0.9, 0.0))
+    assert not world.polygon_boundary_touches(square + (0.8, 0.0))
+    assert world.polygon_boundary_touches(square + (-0.75, 0.05))  # corner into the pillar
