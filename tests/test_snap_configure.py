@@ -155,3 +155,9 @@ def test_arguments_pass_the_whole_chain_intact(system, ros_master):
     expected = "<two words><*><><$HOME>"
     assert shell(system, "teleop", script, *args) == expected
     assert shell(system, "key", script, *args, ROS_MASTER_URI=ros_master.uri, ROS_HOSTNAME="127.0.0.1") == expected
+
+
+def test_library_path_has_no_empty_entry_that_would_mean_the_current_folder(system):
+    entries = shell(system, "teleop", 'echo "$LD_LIBRARY_PATH"').split(":")
+    assert "" not in entries
+    assert any(entry.endswith("/blas") for entry in entries)  # snap-level, with the arch triplet filled in

@@ -119,19 +119,25 @@ def test_stop_with_no_new_map_keeps_previous_current_map(system, make_master, ma
     assert not list(maps.glob(".saving*")) and not list(maps.glob("new_map*"))
 
 
-def test_maps_saved_within_one_second_get_distinct_names_and_all_are_kept(system, ros_master, maps):
-    script = "for n in 1 2 3; do cp -p \"$1/new.pgm\" \"$1/new_map.pgm\"; cp -p \"$1/new.yaml\" \"$1/new_map.yaml\";" \
-             " install_last_map.sh; done"
+def test_maps_saved_within_one_second_get_distinct_names_and_all_are_kept(system, ros_master, maps, tmp_path):
+    # A `date` stuck on one second makes the three saves collide for sure.
+    stuck_clock = tmp_path / "bin" / "date"
+    stuck_clock.parent.mkdir()
+    stuck_clock.write_text("#!/bin/sh\necho 2026-01-02_03-04-05\n")
+    stuck_clock.chmod(0o755)
+    script = ('PATH="$2:$PATH"; for n in 1 2 3; do'
+              ' cp "$1/new.pgm" "$1/new_map.pgm"; cp "$1/new.yaml" "$1/new_map.yaml"; install_last_map.sh; done')
     saved_map(maps, "new")
     environment = user_environment(ROS_MASTER_URI=ros_master.uri, ROS_HOSTNAME="127.0.0.1")
     environment["TURTLEBOT3C_BUILD_DIR"] = system.env["TURTLEBOT3C_BUILD_DIR"]
-    system.snapsim("run", "--shell", "turtlebot3c.mapping", "-c", script, "_", str(maps), env=environment)
-    names = dated_maps(maps)
-    names.remove("new.yaml")
-    assert len(names) == 3
-    assert os.readlink(maps / "current_map.yaml") == sorted(names, key=lambda name: (len(name), name))[-1]
-    for name in names:
-        assert (maps / name).read_text().splitlines()[0] == f"image: {name[:-len('.yaml')]}.pgm"
+    system.snapsim("run", "--shell", "turtlebot3c.mapping", "-c", script, "_", maps, stuck_clock.parent,
+                   env=environment)
+    stem = "2026-01-02_03-04-05"
+    assert dated_maps(maps) == sorted([f"{stem}.yaml", f"{stem}_2.yaml", f"{stem}_3.yaml", "new.yaml"])
+    assert os.readlink(maps / "current_map.yaml") == f"{stem}_3.yaml"
+    for name in (stem, f"{stem}_2", f"{stem}_3"):
+        assert (maps / f"{name}.yaml").read_text().splitlines()[0] == f"image: {name}.pgm"
+        assert (maps / f"{name}.pgm").exists()
     assert not list(maps.glob(".*"))
 
 
