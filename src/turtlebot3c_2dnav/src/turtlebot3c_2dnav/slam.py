@@ -34,6 +34,18 @@ from .scan_matcher import GridMatcher, likelihood_field
 from .slam_scan import scan_rays, voxel_filter
 from .slam_se2 import between, compose, distance, inverse, transform_points, wrap_angle
 
+# Names turtlebot3_slam's `slam_methods` argument takes that this SLAM stands in for, with the
+# node name upstream gives each (its CI looks for turtlebot3_slam_gmapping).
+SLAM_METHODS = collections.OrderedDict([("gmapping", "turtlebot3_slam_gmapping"), ("karto", "slam_karto")])
+
+
+def check_slam_method(name):
+    """The node name for a slam_methods value; ValueError naming the known ones otherwise."""
+    if name not in SLAM_METHODS:
+        raise ValueError("unknown slam_methods {!r}: known methods are {} (each runs turtlebot3c's own "
+                         "SLAM)".format(name, ", ".join(SLAM_METHODS)))
+    return SLAM_METHODS[name]
+
 
 class SlamConfig:
     """SLAM parameters; `SlamConfig.from_dict(params)` rejects unknown names and bad values."""
