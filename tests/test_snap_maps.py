@@ -7,6 +7,7 @@ from test_snap_support import (
     install_turtlebot3c,
     main_command_line,
     mux_mark,
+    processes_of,
     selected_mux_input,
     user_environment,
 )
@@ -163,3 +164,11 @@ def test_navigation_drives_through_nav_vel_and_hands_back_key_vel_when_stopped(s
     system.snapsim("stop", "turtlebot3c.navigation")
     assert selected_mux_input(ros_master, "key_vel", since=mark) == "key_vel"
     wait_until(lambda: system.status("turtlebot3c", "navigation")["state"] == "inactive", 10, "navigation still up")
+
+
+def test_remove_purge_leaves_nothing_of_the_snap_and_no_process(system, maps):
+    saved_map(maps)
+    system.snapsim("run", "--shell", "turtlebot3c.mapping", "-c", "install_last_map.sh")
+    system.snapsim("remove", "--purge", "turtlebot3c")
+    assert [path for path in system.root.rglob("*") if "turtlebot3c" in path.name] == []
+    assert processes_of(system.root) == []

@@ -163,3 +163,12 @@ def test_logs_follow_prints_new_lines_as_they_come(system, project):
         watchdog.cancel()
         follower.kill()
         follower.wait()
+
+
+def test_install_whose_configure_hook_fails_is_undone(system, project):
+    hook = project / "snap" / "hooks" / "install"
+    hook.write_text(hook.read_text().replace("color=red", "color=purple"))
+    done = system.snapsim("install", project, "--dangerous", check=False)
+    assert done.returncode == 1 and "color: 'purple' is not allowed" in done.stderr
+    assert [path for path in system.root.rglob("*") if "demo" in path.name] == []
+    assert processes_of(system.root) == []

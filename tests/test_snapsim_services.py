@@ -74,6 +74,9 @@ def test_daemon_killed_by_sigkill_is_restarted(system):
     wait_for_file(common(system, "main.pid"))
     status = system.wait_state("demo", "svc", ["active"])
     assert status["restarts"] == 1 and status["main_pid"] != first
+    # systemd runs the stop and post-stop commands when the main process dies by itself too
+    after_kill = service_trace(system)[4:]
+    assert after_kill.index("stop-command") < after_kill.index("post-stop-command") < after_kill.index("command")
     assert "Main process exited, code=killed, signal=SIGKILL" in system.logs("demo.svc")
 
 
