@@ -178,7 +178,7 @@ class LogOddsGrid:
         offsets[target] = np.where(counts[:, :, None] > 0.5, mean, 0.0)
         return strength, offsets
 
-    def to_occupancy_map(self, occupied_probability=0.65, free_probability=0.25, margin=2):
+    def to_occupancy_map(self, occupied_probability=0.65, free_probability=0.45, margin=2):
         """The observed part of the grid as an OccupancyMap with 100 / 0 / -1 cells (as gmapping publishes)."""
         observed = self.observations > 0
         if not observed.any():
