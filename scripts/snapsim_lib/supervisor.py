@@ -26,6 +26,7 @@ import select
 import signal
 import subprocess
 import time
+import traceback
 from pathlib import Path
 
 from . import environment, journal
@@ -324,4 +325,9 @@ def _snap_yaml(layout, snap, revision):
 
 
 def supervise(layout, snap, app):
-    Supervisor(layout, snap, app).run()
+    try:
+        Supervisor(layout, snap, app).run()
+    except Exception:
+        # The supervisor has no terminal: its own failure goes to the journal.
+        journal.write(layout, journal.unit_name(snap, app), "snapsim", os.getpid(), traceback.format_exc())
+        raise
