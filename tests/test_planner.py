@@ -77,8 +77,8 @@ def test_plan_goes_through_the_gap_and_keeps_clear_of_the_wall():
 def test_plan_is_no_longer_than_needed_around_a_wall():
     costmap = Costmap(INFO, wall_grid(), robot_radius=0.15, inflation_radius=0.6)
     plan = GlobalPlanner().plan(costmap, (0.5, 0.5), (2.5, 0.5))
-    shortest = 2 * math.hypot(1.0, 1.0)  # straight to the gap's centre and out again
-    assert shortest <= path_length(plan) < 1.15 * shortest
+    through_gap_centre = 2 * math.hypot(1.0, 1.0)
+    assert 2.0 < path_length(plan) < 1.1 * through_gap_centre
 
 
 def test_goal_inside_an_obstacle_is_unreachable_with_a_clear_reason():

@@ -80,6 +80,7 @@ class Costmap:
         if self._costs is None:
             occupied = self.static | self.obstacles
             distances = distance_transform(occupied, self.info.resolution, self.inflation_radius + self.info.resolution)
+            self._distances = distances
             costs = inflate(distances, self.robot_radius, self.inflation_radius, self.cost_scaling_factor)
             costs[self.unknown & ~occupied] = NO_INFORMATION
             self._costs = costs
@@ -91,6 +92,15 @@ class Costmap:
         inside = self.info.contains(row, col)
         result = np.full(np.shape(row), outside, dtype=np.uint8)
         result[inside] = self.costs[row[inside], col[inside]]
+        return result
+
+    def clearance_at(self, x, y, outside=0.0):
+        """Distance (m) from points to the nearest obstacle (capped past inflation_radius)."""
+        self.costs  # noqa: B018 -- brings the distances up to date
+        row, col = self.info.world_to_cell(x, y)
+        inside = self.info.contains(row, col)
+        result = np.full(np.shape(row), outside, dtype=float)
+        result[inside] = self._distances[row[inside], col[inside]]
         return result
 
     def clear_obstacles(self):
@@ -184,3 +194,6 @@ class RollingCostmap(Costmap):
     def cost_at(self, x, y, outside=FREE):
         # Beyond the window nothing is known locally: the global plan vouches for it.
         return super().cost_at(x, y, outside=outside)
+
+    def clearance_at(self, x, y, outside=math.inf):
+        return super().clearance_at(x, y, outside=outside)

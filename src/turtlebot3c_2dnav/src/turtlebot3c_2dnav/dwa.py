@@ -40,14 +40,18 @@ class DwaParams(NamedTuple):
     rotate_in_place_threshold: float = 0.9  # rad of heading error to the carrot
     approach_deceleration: float = 0.3  # m/s^2: the braking profile towards the goal
     min_approach_vel: float = 0.03
+    approach_time_weight: float = 0.05  # m of goal distance worth one second sooner
+    escape_clearance: float = 0.125  # m, nearest obstacle to the centre on arcs leaving the band
     xy_goal_tolerance: float = 0.05
     yaw_goal_tolerance: float = 0.17
 
 
 def dwa_params_for_model(model, **overrides) -> DwaParams:
     """Limits of a turtlebot3c_description RobotModel, with optional overrides."""
+    half_width = max(abs(y) for _, y in model.footprint)
     params = DwaParams(max_vel_x=model.max_linear_velocity, max_vel_theta=model.max_angular_velocity,
-                       acc_lim_x=model.max_linear_acceleration, acc_lim_theta=model.max_angular_acceleration)
+                       acc_lim_x=model.max_linear_acceleration, acc_lim_theta=model.max_angular_acceleration,
+                       escape_clearance=half_width + 0.02)
     return params._replace(**overrides)
 
 
@@ -94,7 +98,24 @@ class DwaController:
         heading_error = wrap(math.atan2(carrot[1] - y, carrot[0] - x) - yaw)
         if abs(heading_error) > p.rotate_in_place_threshold and abs(velocity[0]) < 0.05:
             return self._turn(heading_error, velocity, "rotate")
-        return self._best_arc(pose, velocity, carrot, near_goal, distance, costmap)
+        command = self._best_arc(pose, velocity, carrot, near_goal, distance, costmap)
+        if command.status == "follow" and abs(command.linear) < 0.01 and abs(velocity[0]) < 0.01:
+            # Only turning on the spot is safe, and no turn brings the carrot closer: face the
+            # plan's own direction here (it bends round what is in the way), then go on.
+            tangent_error = wrap(self._plan_direction() - yaw)
+            if abs(tangent_error) > 0.1:
+                return self._turn(tangent_error, velocity, "rotate")
+            return Command(0.0, 0.0, "blocked")
+        return command
+
+    def _plan_direction(self):
+        """Heading of the plan from the robot's nearest plan point to 0.2 m further on."""
+        plan = self.plan
+        here = plan[self._progress_index]
+        ahead = plan[min(len(plan) - 1, self._progress_index + 4)]
+        if np.allclose(here, ahead):
+            ahead = plan[-1]
+        return math.atan2(ahead[1] - here[1], ahead[0] - here[0])
 
     # --- pieces -----------------------------------------------------------------------
 
@@ -137,6 +158,18 @@ class DwaController:
         v_grid, w_grid = np.meshgrid(vs, ws, indexing="ij")
         return v_grid.ravel(), w_grid.ravel()
 
+    def _safe(self, trajectories, costs, costmap):
+        """Arcs that keep the robot's circle (the footprint turning on the spot) off obstacles.
+        Where there are none (a tight passage, a bump in localisation left the robot in the
+        band where the circle touches), the arcs that keep escape_clearance from obstacles
+        and end outside the band, or the robot could never leave."""
+        valid = costs.max(axis=1) < INSCRIBED
+        moving = np.hypot(*(trajectories[:, -1, :2] - trajectories[:, 0, :2]).T) > 0.02
+        if (valid & moving).any():
+            return valid
+        clearance = costmap.clearance_at(trajectories[..., 0], trajectories[..., 1]).min(axis=1)
+        return valid | ((clearance >= self.params.escape_clearance) & (costs[:, -1] < INSCRIBED))
+
     def rollout(self, pose, v, w):
         """Poses (S x T x 3) along arcs of constant (v, w) from `pose`."""
         p = self.params
@@ -165,16 +198,25 @@ class DwaController:
         trajectories = self.rollout(pose, v, w)
         costs = costmap.cost_at(trajectories[..., 0], trajectories[..., 1]).astype(float)
         worst = costs.max(axis=1)
-        valid = worst < INSCRIBED
+        valid = self._safe(trajectories, costs, costmap)
         if not valid.any():
             self.last_trajectory = None
             return Command(0.0, 0.0, "blocked")
-        ends = trajectories[:, -1, :]
-        goal_cost = np.hypot(ends[:, 0] - carrot[0], ends[:, 1] - carrot[1])
+        if near_goal:
+            # Judge each arc where it passes closest to the goal, sooner being better: judged at
+            # its end, an arc fast enough to pass the goal would lose to a crawl that ends on it.
+            to_goal = np.hypot(trajectories[..., 0] - carrot[0], trajectories[..., 1] - carrot[1])
+            closest = np.argmin(to_goal, axis=1)
+            ends = trajectories[np.arange(len(v)), closest, :]
+            time_cost = (closest + 1) * p.sim_granularity * p.approach_time_weight
+        else:
+            ends = trajectories[:, -1, :]
+            time_cost = 0.0
+        goal_cost = np.hypot(ends[:, 0] - carrot[0], ends[:, 1] - carrot[1]) + time_cost
         segment = self.plan[self._progress_index:self._progress_index + 80]
         path_cost = np.min(np.hypot(ends[:, 0:1] - segment[None, :, 0], ends[:, 1:2] - segment[None, :, 1]), axis=1)
         direction = np.arctan2(carrot[1] - ends[:, 1], carrot[0] - ends[:, 0])
-        close = goal_cost < 0.1  # on the carrot itself, the direction to it means nothing
+        close = np.hypot(ends[:, 0] - carrot[0], ends[:, 1] - carrot[1]) < 0.1  # on the carrot, no direction
         heading_cost = np.where(close, 0.0, np.abs(wrap_angle(direction - ends[:, 2])))
         score = (p.goal_distance_bias * goal_cost + p.path_distance_bias * path_cost
                  + p.heading_bias * heading_cost + p.occdist_scale * worst / 252.0)

@@ -40,10 +40,11 @@ def _nearest_free_cell(costs, row, col, max_cells):
     return int(rows[best]), int(cols[best])
 
 
-def astar(costs, start, goal, cost_weight=3.0) -> Optional[List[Tuple[int, int]]]:
-    """Cells from start to goal (row, col) avoiding costs >= INSCRIBED, or None."""
+def astar(costs, start, goal, cost_weight=3.0, passable=None) -> Optional[List[Tuple[int, int]]]:
+    """Cells from start to goal (row, col) through `passable` cells (default: costs below
+    INSCRIBED), or None."""
     height, width = costs.shape
-    passable = (costs < INSCRIBED).ravel().tolist()
+    passable = (costs < INSCRIBED if passable is None else passable).ravel().tolist()
     step_factor = (1.0 + cost_weight * np.minimum(costs, 252).astype(float) / 252.0).ravel().tolist()
     start_index = start[0] * width + start[1]
     goal_index = goal[0] * width + goal[1]
@@ -137,13 +138,30 @@ def path_length(points) -> float:
 
 
 class GlobalPlanner:
-    def __init__(self, cost_weight=3.0, goal_search_radius=0.0, spacing=0.05):
+    def __init__(self, cost_weight=1.0, goal_search_radius=0.0, spacing=0.05, clearance_cost=175,
+                 clearance_radius=0.4):
         """`goal_search_radius` (m): a goal in a blocked cell moves to the nearest free cell
         within it (0: such a goal is unreachable); the start may always move a little, since
-        localisation noise can put the robot's centre inside the inscribed band."""
+        localisation noise can put the robot's centre inside the inscribed band.
+
+        Paths first keep out of cells costlier than `clearance_cost` (175: 0.12 m beyond the
+        robot's circle with cost_scaling_factor 3) (except within
+        clearance_radius of the start and the goal), leaving the controller room to follow
+        them with arcs; only where that finds no way do they use the whole free space."""
+        self.clearance_cost = clearance_cost
+        self.clearance_radius = clearance_radius
         self.cost_weight = cost_weight
         self.goal_search_radius = goal_search_radius
         self.spacing = spacing
+
+    def _roomy(self, costs, info, start, goal):
+        passable = costs < min(self.clearance_cost, INSCRIBED)
+        reach = int(round(self.clearance_radius / info.resolution))
+        for row, col in (start, goal):
+            r0, c0 = max(0, row - reach), max(0, col - reach)
+            window = costs[r0:row + reach + 1, c0:col + reach + 1]
+            passable[r0:row + reach + 1, c0:col + reach + 1] |= window < INSCRIBED
+        return passable
 
     def plan(self, costmap: Costmap, start_xy, goal_xy) -> np.ndarray:
         """Path (N x 2 world points, every `spacing` m) from start to goal; PlanningError if none."""
@@ -167,7 +185,9 @@ class GlobalPlanner:
             if moved is None:
                 raise PlanningError("robot ({:.2f}, {:.2f}) is inside an obstacle on the costmap".format(*start_xy))
             start = moved
-        cells = astar(costs, start, goal, self.cost_weight)
+        cells = astar(costs, start, goal, self.cost_weight, self._roomy(costs, info, start, goal))
+        if cells is None:
+            cells = astar(costs, start, goal, self.cost_weight)
         if cells is None:
             raise PlanningError("no path from ({:.2f}, {:.2f}) to ({:.2f}, {:.2f}): the goal is cut off by obstacles"
                                 .format(*start_xy[:2], *goal_xy[:2]))

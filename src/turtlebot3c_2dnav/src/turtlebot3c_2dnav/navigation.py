@@ -47,11 +47,17 @@ class _OdomView:
         self.costmap = costmap
         self.transform = odom_from_map
 
-    def cost_at(self, x, y):
+    def _to_odom(self, x, y):
         tx, ty, tyaw = self.transform
         c, s = math.cos(tyaw), math.sin(tyaw)
         x, y = np.asarray(x), np.asarray(y)
-        return self.costmap.cost_at(tx + c * x - s * y, ty + s * x + c * y)
+        return tx + c * x - s * y, ty + s * x + c * y
+
+    def cost_at(self, x, y):
+        return self.costmap.cost_at(*self._to_odom(x, y))
+
+    def clearance_at(self, x, y):
+        return self.costmap.clearance_at(*self._to_odom(x, y))
 
 
 class _Recovery:

@@ -74,7 +74,7 @@ def make_costmaps(layers: MapLayers, params: CostmapParams):
 
 
 def make_navigator(layers: MapLayers, model, costmap_params: CostmapParams = None, dwa_params: DwaParams = None,
-                   nav_params: Optional[NavParams] = None, cost_weight=3.0) -> Navigator:
+                   nav_params: Optional[NavParams] = None, cost_weight=1.0) -> Navigator:
     costmap_params = costmap_params or costmap_params_for_model(model)
     dwa_params = dwa_params or dwa_params_for_model(model)
     global_costmap, local_costmap = make_costmaps(layers, costmap_params)
