@@ -9,6 +9,7 @@ from turtlebot3c_teleop.velocity_watchdog import VelocityWatchdog
 
 TWIST = "geometry_msgs/Twist"
 ODOMETRY = "nav_msgs/Odometry"
+TIMEOUT = 0.3  # the launch file's watchdog_timeout
 
 
 def test_no_stop_before_any_command():
@@ -54,7 +55,7 @@ def test_selected_source_reaches_cmd_vel_and_silence_sends_zero(teleop):
     assert zero is not None
     stop_time = next(entry["t"] for entry in probe.timed_messages("/cmd_vel", start)
                      if entry["msg"]["linear"]["x"] == 0.0)
-    assert 0.4 <= stop_time - last_sent <= 0.8
+    assert TIMEOUT - 0.1 <= stop_time - last_sent <= TIMEOUT + 0.3
 
 
 def test_unselected_source_does_not_reach_cmd_vel(teleop):
@@ -110,7 +111,7 @@ def test_simulated_robot_stops_within_half_a_second_when_its_source_is_sigkilled
         "the robot moved again after it stopped"
     last_command, zero_sent = last_moving_and_first_stop(probe, start)
     silence = zero_sent - last_command
-    assert 0.45 <= silence <= 0.5 + 0.3, f"the zero came {silence:.3f} s after the last command"
+    assert TIMEOUT - 0.05 <= silence <= TIMEOUT + 0.3, f"the zero came {silence:.3f} s after the last command"
     print(f"SIGKILL -> zero on /cmd_vel {zero_sent - killed_at:.3f} s, "
           f"-> simulated robot at rest {robot_stopped_at - killed_at:.3f} s")
     assert robot_stopped_at - killed_at <= 0.5 + 0.3
@@ -126,7 +127,7 @@ def test_switching_to_a_silent_input_stops_the_robot(teleop):
     probe.call("/mux/select", {"topic": "__none"})
     probe.wait_for_message("/cmd_vel", TWIST, start=start, timeout=5, where=lambda m: m["linear"]["x"] == 0.0)
     last_command, stopped = last_moving_and_first_stop(probe, start)
-    assert 0.45 <= stopped - last_command <= 0.8
+    assert TIMEOUT - 0.05 <= stopped - last_command <= TIMEOUT + 0.3
 
 
 def test_mux_starts_on_nav_vel(make_master):
