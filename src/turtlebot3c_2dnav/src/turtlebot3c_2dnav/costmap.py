@@ -61,7 +61,7 @@ class Costmap:
 
     def __init__(self, info: GridInfo, static_occupied=None, unknown=None, robot_radius=0.105,
                  inflation_radius=1.0, cost_scaling_factor=3.0, obstacle_range=3.0, raytrace_range=3.5,
-                 track_unknown=True):
+                 track_unknown=True, static_tolerance=0.1):
         self.info = info
         shape = (info.height, info.width)
         self.static = np.zeros(shape, bool) if static_occupied is None else np.asarray(static_occupied, bool)
@@ -73,6 +73,10 @@ class Costmap:
         self.obstacle_range = obstacle_range
         self.raytrace_range = raytrace_range
         self._costs: Optional[np.ndarray] = None
+        # Laser returns this close to a known obstacle are that obstacle, seen through range
+        # noise and localisation error: marking them would narrow doors with phantoms.
+        self.near_static = (distance_transform(self.static, info.resolution, static_tolerance + info.resolution)
+                            <= static_tolerance) if self.static.any() else np.zeros(shape, bool)
 
     @property
     def costs(self) -> np.ndarray:
@@ -153,7 +157,7 @@ class Costmap:
         inside = self.info.contains(row, col)
         row, col = row[inside], col[inside]
         # The static map already holds what it knows; the layer keeps only new obstacles.
-        fresh = ~self.static[row, col]
+        fresh = ~self.near_static[row, col]
         self.obstacles[row[fresh], col[fresh]] = True
 
 
@@ -188,6 +192,7 @@ class RollingCostmap(Costmap):
         self.obstacles = moved
         self.info = self.info._replace(origin_x=new_origin_x, origin_y=new_origin_y)
         self.static = np.zeros_like(self.obstacles)
+        self.near_static = self.static
         self.unknown = np.zeros_like(self.obstacles)
         self._costs = None
 
