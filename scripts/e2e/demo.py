@@ -30,6 +30,10 @@ def parse_args(argv):
     parser.add_argument("--model", default="waffle_pi", choices=MODELS, help="turtlebot3-model (default waffle_pi)")
     parser.add_argument("--lds-model", default="LDS-01", choices=("LDS-01", "LDS-02"), help="with --real-robot")
     parser.add_argument("--world", default="turtlebot3_world", choices=sorted(explorer.TOURS))
+    parser.add_argument("--speed", type=float, default=0.18, help="the explorer's top speed, m/s (default 0.18)")
+    parser.add_argument("--turn-rate", type=float,
+                        help="the explorer's top turn rate, rad/s (default 0.8; 0.3 with --real-robot, where "
+                             "a LIDAR revolution takes 0.2 s and fast turns skew the scans)")
     parser.add_argument("--snap-cli", default="snapsim", choices=("snapsim", "snap"),
                         help="snapsim (a private root, default) or the real snap (as root, with --snap-file)")
     parser.add_argument("--snap-file", help="the .snap to install with --snap-cli snap")
@@ -176,13 +180,14 @@ class Demo:
         self.progress.step("drive", f"driving the {self.summary['tour']} tour of {options.world} on key_vel")
         start = self.link.true_pose()
         legs = explorer.plan_tour(self.world, start[:2], steps, model.robot_radius)
-        max_linear = min(0.18, model.max_linear_velocity)
-        max_angular = min(0.8, model.max_angular_velocity)
+        max_linear = min(options.speed, model.max_linear_velocity)
+        turn_rate = options.turn_rate or (0.3 if options.real_robot else 0.8)
+        max_angular = min(turn_rate, model.max_angular_velocity)
         self.slam_path = []
         self.link.start_recording()
         for index, leg in enumerate(legs, 1):
             if leg is explorer.SPIN:
-                controller, what, timeout = explorer.Spin(max_angular), "a turn on the spot", 60
+                controller, what, timeout = explorer.Spin(min(max_angular, 0.4)), "a turn on the spot", 90
             else:
                 controller = explorer.PurePursuit(leg, max_linear, max_angular)
                 what = "to ({:.2f}, {:.2f}), {:.1f} m".format(*leg[-1], evaluation.path_length(leg))
@@ -204,6 +209,8 @@ class Demo:
         if not current.exists():
             raise RuntimeError(f"no {current} after stopping mapping (snap logs:\n{self.snap.logs('40')})")
         self.map_file = current.resolve()
+        # The snap's map folder may go with the snapsim root: keep a copy beside the pictures.
+        shutil.copytree(self.snap.map_dir, self.out / "maps", symlinks=True)
         self.load_saved_map()
         self.progress.done(f"current_map.yaml -> {self.map_file.name}")
 
@@ -232,7 +239,7 @@ class Demo:
             "map_file": str(self.map_file),
             "map_cells": [saved.width, saved.height],
             "map_size_m": [round(saved.width * saved.resolution, 2), round(saved.height * saved.resolution, 2)],
-            "map_resolution": saved.resolution,
+            "map_resolution": round(saved.resolution, 4),
             "map_known_cells": score.known_cells,
             "map_agreement": round(score.agreement, 4),
             "map_coverage": round(score.coverage, 4),
@@ -247,9 +254,10 @@ class Demo:
         client = self.link.move_base_client(timeout=180)
         wait_for(self.link.initial_pose_listened, 60, "amcl listening on /initialpose")
         # As a person would in RViz ("2D Pose Estimate"): where the robot stood when mapping ended.
+        since = time.monotonic()
         self.link.set_initial_pose(self.final_slam_pose)
-        wait_for(lambda: self.near(self.link.map_pose(), self.final_slam_pose, 0.3), 60,
-                 "AMCL's pose near the initial pose")
+        wait_for(lambda: self.link.amcl_settled(since, self.final_slam_pose, 0.2), 60,
+                 "AMCL's pose to settle at the initial pose")
         self.progress.done("localised at ({:.2f}, {:.2f})".format(*self.final_slam_pose[:2]))
 
         world_to_map = evaluation.inverse(self.map_in_world)
@@ -265,13 +273,18 @@ class Demo:
             final = self.link.true_pose()
             error = math.hypot(final[0] - goal_in_world[0], final[1] - goal_in_world[1]) if final else float("nan")
             plans = self.link.plans_since(sent)
+            start = truth[0][1:3] if truth else None
+            # The first plan made from where the robot stood (AMCL may still be settling for the very first).
+            from_start = [plan for plan in plans if start is None or self.starts_near(plan, world_to_map, start)]
+            plan = (from_start or plans or [[]])[0]
             reached = status == "SUCCEEDED" and error <= GOAL_TOLERANCE
             self.goal_results.append({
                 "goal_map": [round(v, 3) for v in goal], "status": status, "text": text, "seconds": round(seconds, 1),
                 "true_error_m": round(error, 3), "reached": reached,
-                "plan_m": round(evaluation.path_length(plans[0]), 2) if plans else None,
+                "plan_m": round(evaluation.path_length(plan), 2) if plan else None,
+                "plans_published": len(plans),
                 "driven_m": round(evaluation.path_length([(x, y) for _, x, y, _ in truth]), 2),
-                "plan": plans[0] if plans else [],
+                "plan": plan,
                 "driven": evaluation.transform_points(world_to_map, [(x, y) for _, x, y, _ in truth]).tolist()
                 if truth else [],
             })
@@ -281,8 +294,9 @@ class Demo:
         self.summary["goals_reached"] = sum(result["reached"] for result in self.goal_results)
 
     @staticmethod
-    def near(pose, target, distance):
-        return pose is not None and math.hypot(pose[0] - target[0], pose[1] - target[1]) <= distance
+    def starts_near(plan, world_to_map, start_in_world, distance=0.3):
+        start = evaluation.transform_points(world_to_map, [start_in_world])[0]
+        return math.hypot(plan[0][0] - start[0], plan[0][1] - start[1]) <= distance
 
     # --- the end --------------------------------------------------------------------------
 
@@ -326,11 +340,13 @@ class Demo:
             legend = []
             for index, result in enumerate(self.goal_results):
                 colour = PATH_COLOURS[index % len(PATH_COLOURS)]
+                light = tuple(255 - (255 - c) // 3 for c in colour)
+                navigation.path(result["driven"], light, width=7)
                 navigation.path(result["plan"], colour, width=2)
-                navigation.path(result["driven"], tuple(c // 2 for c in colour), width=4)
                 navigation.marker(result["goal_map"][0], result["goal_map"][1], colour, label=str(index + 1))
-                legend.append((colour, f"goal {index + 1}: {result['status'].lower()}, plan thin, driven thick"))
-            navigation.legend(legend)
+                legend.append((colour, f"goal {index + 1}: {result['status'].lower()} in {result['seconds']} s"))
+            navigation.marker(self.final_slam_pose[0], self.final_slam_pose[1], (0, 0, 0), label="start")
+            navigation.legend(legend + [((160, 160, 160), "global plan (line), driven path (band)")])
             paths["navigation_png"] = str(navigation.save(self.out / "navigation_paths.png"))
         self.summary.update(paths)
 
@@ -343,7 +359,8 @@ class Demo:
                          "{:.1%}, free area covered {:.1%}".format(*s["map_cells"], s["map_resolution"],
                                                                    *s["map_size_m"], s["map_known_cells"],
                                                                    s["map_agreement"], s["map_coverage"]))
-            lines.append(f"  map file: {s['map_file']}  (maps kept: {', '.join(s['maps_in_folder'])})")
+            lines.append(f"  map file: {s['map_file']}  (maps kept: {', '.join(s['maps_in_folder'])}; "
+                         f"copied to {self.out / 'maps'})")
         if "driven_m" in s:
             lines.append(f"  driven while mapping: {s['driven_m']} m")
         for index, goal in enumerate(s.get("goals", []), 1):

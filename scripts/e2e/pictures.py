@@ -39,10 +39,18 @@ class MapPicture:
 
     def legend(self, entries):
         """Lines of (colour, text) in the top-left corner."""
+        width = max(self.text_width(text) for _, text in entries) + 28 if entries else 0
+        self.draw.rectangle([2, 2, width, 6 + 14 * len(entries)], fill=(255, 255, 255), outline=(120, 120, 120))
         for index, (colour, text) in enumerate(entries):
             top = 4 + 14 * index
             self.draw.rectangle([4, top + 3, 16, top + 9], fill=colour)
             self.draw.text((20, top), text, fill=(0, 0, 0))
+
+    def text_width(self, text):
+        # Pillow 8+ has textlength; Ubuntu 20.04's Pillow 7 (CI's e2e job) only textsize.
+        if hasattr(self.draw, "textlength"):
+            return self.draw.textlength(text)
+        return self.draw.textsize(text)[0]
 
     def save(self, path):
         self.image.save(str(path), format="PNG")

@@ -38,7 +38,9 @@ class RosLink:
         self.key_vel = rospy.Publisher("key_vel", Twist, queue_size=1)
         self.initial_pose = rospy.Publisher("initialpose", PoseWithCovarianceStamped, queue_size=1, latch=True)
         rospy.Subscriber("/sim/ground_truth", Odometry, self._on_truth, queue_size=5)
+        self.amcl_poses = []        # (time, x, y) of /amcl_pose
         rospy.Subscriber("/move_base/plan", Path, self._on_plan, queue_size=5)
+        rospy.Subscriber("/amcl_pose", PoseWithCovarianceStamped, self._on_amcl_pose, queue_size=5)
 
     def _on_truth(self, message):
         pose = message.pose.pose
@@ -47,6 +49,18 @@ class RosLink:
             self.truth = sample
             if self.recording:
                 self.truth_history.append(sample)
+
+    def _on_amcl_pose(self, message):
+        position = message.pose.pose.position
+        with self.lock:
+            self.amcl_poses.append((time.monotonic(), position.x, position.y))
+
+    def amcl_settled(self, since, pose, distance):
+        """Whether AMCL's last estimate since `since` lies within `distance` of `pose` (a robot at
+        rest gets one estimate after a new initial pose: the filter runs again only on motion)."""
+        with self.lock:
+            recent = [sample for sample in self.amcl_poses if sample[0] >= since][-1:]
+        return bool(recent) and math.hypot(recent[0][1] - pose[0], recent[0][2] - pose[1]) <= distance
 
     def _on_plan(self, message):
         points = [(stamped.pose.position.x, stamped.pose.position.y) for stamped in message.poses]
