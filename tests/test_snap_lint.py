@@ -88,6 +88,7 @@ def test_mapping_and_navigation_start_disabled_and_clean_up_when_stopped():
     assert apps["mapping"]["stop-command"] == "usr/bin/save_map.sh"
     assert apps["mapping"]["post-stop-command"] == "usr/bin/install_last_map.sh"
     assert int(apps["mapping"]["stop-timeout"].rstrip("s")) >= 60
+    assert apps["mapping"]["stop-mode"] == "sigint-all"  # rosbag closes its bag on SIGINT only
     assert apps["navigation"]["post-stop-command"] == "usr/bin/mux_select.sh --input key_vel"
     assert apps["navigation"]["environment"]["MUX_INPUT"] == "nav_vel"
 

@@ -89,7 +89,10 @@ def test_mapping_stop_saves_a_dated_map_and_makes_it_current(system, ros_master,
     assert os.readlink(maps / "current_map.yaml") == dated
     assert f"image: {stem}.pgm" in (maps / dated).read_text().splitlines()
     assert (maps / f"{stem}.pgm").read_bytes().startswith(b"P5")
-    assert sorted(path.name for path in maps.iterdir()) == sorted([dated, f"{stem}.pgm", "current_map.yaml"])
+    # the mapping launch may record the session (new_map.bag): it is kept under the map's name
+    left = sorted(path.name for path in maps.iterdir())
+    assert left in (sorted([dated, f"{stem}.pgm", "current_map.yaml"]),
+                    sorted([dated, f"{stem}.pgm", f"{stem}.bag", "current_map.yaml"])), left
     logs = system.logs("turtlebot3c.mapping")
     assert "save_map: map saved" in logs and f"install_last_map: {maps}/{dated} is now the current map" in logs
 
@@ -140,6 +143,19 @@ def test_maps_saved_within_one_second_get_distinct_names_and_all_are_kept(system
         assert (maps / f"{name}.yaml").read_text().splitlines()[0] == f"image: {name}.pgm"
         assert (maps / f"{name}.pgm").exists()
     assert not list(maps.glob(".*"))
+
+
+def test_session_recording_keeps_the_name_of_its_map_or_is_kept_alone(system, ros_master, maps):
+    saved_map(maps)
+    (maps / "new_map.bag").write_bytes(b"#ROSBAG V2.0\n")
+    shell(system, "mapping", "install_last_map.sh", ros_master.uri)
+    stem = os.readlink(maps / "current_map.yaml")[:-len(".yaml")]
+    assert (maps / f"{stem}.bag").read_bytes() == b"#ROSBAG V2.0\n"
+    (maps / "new_map.bag.active").write_bytes(b"#ROSBAG V2.0\n")
+    done = shell(system, "mapping", "install_last_map.sh", ros_master.uri)
+    assert "no new map was saved" in done.stderr and "rosbag reindex" in done.stderr
+    assert os.readlink(maps / "current_map.yaml") == f"{stem}.yaml"
+    assert len(list(maps.glob("*.bag.active"))) == 1 and not list(maps.glob("new_map*"))
 
 
 def test_navigation_without_a_map_refuses_clearly_and_is_not_restarted(system, ros_master, maps):

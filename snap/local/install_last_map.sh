@@ -1,6 +1,8 @@
 #!/bin/bash
 # mapping's post-stop-command: give the map save_map.sh just saved a dated name
 # and make it the current map (current_map.yaml, a link navigation reads).
+# The session's recording (new_map.bag, written by the mapping launch) gets the
+# same dated name, so a map and the data it was made from stay together.
 #
 # Every map is kept. The link is replaced by rename(2), so current_map.yaml is
 # always either the previous map or the new one, never missing or half-written.
@@ -10,7 +12,34 @@ set -eu
 map_dir="$SNAP_USER_COMMON/map"
 new_yaml="$map_dir/new_map.yaml"
 new_pgm="$map_dir/new_map.pgm"
+new_bag="$map_dir/new_map.bag"
 current="$map_dir/current_map.yaml"
+
+# A name no other map or recording has, even for two saves within one second.
+unused_name() {
+  local stamp name suffix=1
+  stamp="$(date +%Y-%m-%d_%H-%M-%S)"
+  name="$stamp"
+  while [ -e "$map_dir/$name.yaml" ] || [ -e "$map_dir/$name.pgm" ] || [ -e "$map_dir/$name.bag" ] ||
+    [ -e "$map_dir/$name.bag.active" ]; do
+    suffix=$((suffix + 1))
+    name="${stamp}_${suffix}"
+  done
+  echo "$name"
+}
+
+# rosbag leaves <bag>.active when it was not closed cleanly; keep that too (rosbag reindex repairs it).
+keep_recording() {
+  local name="$1"
+  if [ -f "$new_bag" ]; then
+    mv -- "$new_bag" "$map_dir/$name.bag"
+    echo "install_last_map: the session's recording is $map_dir/$name.bag"
+  elif [ -f "$new_bag.active" ]; then
+    mv -- "$new_bag.active" "$map_dir/$name.bag.active"
+    echo "install_last_map: the session's recording was not closed cleanly: $map_dir/$name.bag.active" \
+      "(repair it with rosbag reindex)" >&2
+  fi
+}
 
 if [ ! -f "$new_yaml" ] || [ ! -f "$new_pgm" ]; then
   if [ -e "$current" ]; then
@@ -18,17 +47,11 @@ if [ ! -f "$new_yaml" ] || [ ! -f "$new_pgm" ]; then
   else
     echo "install_last_map: no new map was saved, and there is no current map yet" >&2
   fi
+  keep_recording "$(unused_name)"
   exit 0
 fi
 
-# A name no other map has, even for two maps saved within the same second.
-stamp="$(date +%Y-%m-%d_%H-%M-%S)"
-name="$stamp"
-suffix=1
-while [ -e "$map_dir/$name.yaml" ] || [ -e "$map_dir/$name.pgm" ]; do
-  suffix=$((suffix + 1))
-  name="${stamp}_${suffix}"
-done
+name="$(unused_name)"
 
 # The dated YAML names its image relatively, so the folder can move.
 sed "s|^image:.*|image: $name.pgm|" "$new_yaml" >"$map_dir/.$name.yaml.tmp"
@@ -36,6 +59,7 @@ mv -- "$new_pgm" "$map_dir/$name.pgm"
 sync -- "$map_dir/.$name.yaml.tmp" "$map_dir/$name.pgm"
 mv -- "$map_dir/.$name.yaml.tmp" "$map_dir/$name.yaml"
 rm -f -- "$new_yaml"
+keep_recording "$name"
 
 ln -sfn -- "$name.yaml" "$map_dir/.current_map.yaml.tmp"
 mv -fT -- "$map_dir/.current_map.yaml.tmp" "$current"

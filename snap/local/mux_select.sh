@@ -34,6 +34,13 @@ fi
 deadline=$(($(date +%s) + timeout_s))
 until output="$(timeout 15 rosservice call /mux/select "topic: '$input'" 2>&1)"; do
   if [ "$(date +%s)" -ge "$deadline" ]; then
+    # From another machine the usual cause is a wrong ros-master-host, not a stopped teleop: say which.
+    if ! timeout 10 rosnode list >/dev/null 2>&1; then
+      echo "mux_select: could not select '$input': no ROS master answers at ${ROS_MASTER_URI:-(unset)}" \
+        "within ${timeout_s} s. Is the robot on, and is ros-master-host right" \
+        "(snap get turtlebot3c ros-master-host; sudo snap set turtlebot3c ros-master-host=<robot name or address>)?" >&2
+      exit 1
+    fi
     echo "mux_select: could not select '$input': /mux/select did not answer within ${timeout_s} s" \
       "(is the teleop daemon running? sudo snap start turtlebot3c.teleop). Last error: $output" >&2
     exit 1

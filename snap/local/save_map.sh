@@ -8,6 +8,8 @@ set -eu
 
 map_dir="$SNAP_USER_COMMON/map"
 mkdir -p "$map_dir"
+# Left by a save that was killed (stop-timeout, power loss): never a complete map.
+rm -rf -- "$map_dir"/.saving.*
 work="$(mktemp -d "$map_dir/.saving.XXXXXX")"
 trap 'rm -rf -- "$work"' EXIT
 
