@@ -7,9 +7,9 @@ import math
 import os
 import signal
 import time
-import xmlrpc.client
 
 import pytest
+from real_robot import drive, latest_odometry, node_pid, start_robot
 
 from ros_harness import wait_until
 from turtlebot3c_sim.fake_robot import send_command
@@ -19,21 +19,6 @@ SCAN = "sensor_msgs/LaserScan"
 JOINTS = "sensor_msgs/JointState"
 TWIST = "geometry_msgs/Twist"
 DIAGNOSTICS = "diagnostic_msgs/DiagnosticArray"
-
-
-def start_robot(master, model, lds_model, world="turtlebot3_world"):
-    devices = master.workdir / f"dev-{lds_model}"
-    devices.mkdir(exist_ok=True)
-    control = devices / "control"
-    fake = master.rosrun("turtlebot3c_sim", "fake_robot", "--opencr-link", devices / "ttyACM0",
-                         "--lds-link", devices / "ttyUSB0", "--lds-model", lds_model, "--model", model,
-                         "--world", world, "--noise", "none", "--control-socket", control)
-    wait_until(lambda: control.exists() or not fake.running(), 30, "the fake robot never came up")
-    assert fake.running(), fake.log_text()
-    master.launch("turtlebot3c_bringup", "turtlebot3c_bringup.launch", "simulation:=false", f"model:={model}",
-                  f"lds_model:={lds_model}", f"opencr_port:={devices / 'ttyACM0'}",
-                  f"lds_port:={devices / 'ttyUSB0'}")
-    return control
 
 
 @pytest.fixture(scope="module")
@@ -79,17 +64,6 @@ def test_the_tf_tree_joins_odometry_and_the_robot_model(robot):
         pytest.approx(0.064, abs=1e-3)
     wheel = master.probe.transform("base_link", "wheel_left_link", timeout=10)["transform"]["translation"]
     assert wheel["y"] == pytest.approx(0.144)
-
-
-def drive(probe, linear, angular, seconds):
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        probe.publish("/cmd_vel", TWIST, {"linear": {"x": linear}, "angular": {"z": angular}})
-        time.sleep(0.1)
-
-
-def latest_odometry(probe):
-    return probe.wait_for_message("/odom", ODOMETRY)["pose"]["pose"]
 
 
 def test_cmd_vel_moves_the_fake_robot_and_odometry_follows(robot):
@@ -184,16 +158,6 @@ def test_lds02_burger_bringup_gives_the_same_scan_layout(make_master):
     assert sum(1 for value in scan["ranges"] if 0.16 <= value <= 3.5) > 100
     master.probe.wait_for_message("/odom", ODOMETRY, timeout=30)
     assert "turtlebot3_burger" in master.param("/robot_description")
-
-
-def node_pid(master, name):
-    code, _, uri = master.master_api().lookupNode("/test", name)
-    if code != 1:
-        return None
-    try:
-        return xmlrpc.client.ServerProxy(uri).getPid("/test")[2]
-    except OSError:
-        return None
 
 
 def test_a_killed_driver_is_respawned_and_its_odometry_continues(robot):
