@@ -292,8 +292,10 @@ class RosProbe:
     """Client side of tests/rosprobe.py: a rospy node in a child process."""
 
     def __init__(self, master):
+        # A master-like object may name a command prefix, e.g. `ip netns exec NS` for another test host.
+        prefix = list(getattr(master, "command_prefix", []))
         self.process = subprocess.Popen(
-            [str(VENV / "bin" / "python3"), str(Path(__file__).with_name("rosprobe.py"))],
+            prefix + [str(VENV / "bin" / "python3"), str(Path(__file__).with_name("rosprobe.py"))],
             env=master.env, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
             stderr=open(master.workdir / "probe.log", "ab"), start_new_session=True, text=True)
         ready = json.loads(self.process.stdout.readline() or '{"ok": false}')
