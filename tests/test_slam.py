@@ -260,9 +260,32 @@ def test_map_of_turtlebot3_world_matches_ground_truth_despite_odometry_drift():
     assert (x, y, yaw) == pytest.approx(slam.pose)
 
 
-def test_house_loop_closes_without_a_doubled_wall():
-    slam, world, truth, _ = simulated_run("house", ROUTES["house"], noise=NoiseConfig()._replace(
+@pytest.fixture(scope="module")
+def house_run():
+    """The house loop driven twice as far off by odometry as the simulator's default, three times."""
+    return simulated_run("house", ROUTES["house"], noise=NoiseConfig()._replace(
         odom_linear_drift=0.03, odom_angular_drift=0.03, wheel_slip=0.015))
+
+
+def test_redrawing_the_map_outside_the_slam_gives_the_same_map_unless_keyframes_moved_again(house_run):
+    slam = house_run[0]
+    assert slam.map_outdated  # the last loop closure moved keyframes
+    stale = slam.map_rebuild()
+    stale.run()
+    slam._optimize()  # another loop closure meanwhile
+    assert not slam.adopt(stale)
+    fresh = slam.map_rebuild()
+    fresh.run()
+    assert slam.adopt(fresh)
+    assert not slam.map_outdated
+    redrawn_in_place = Slam(slam.config)
+    redrawn_in_place.keyframes, redrawn_in_place.graph = slam.keyframes, slam.graph
+    redrawn_in_place._global_dirty = True
+    assert redrawn_in_place.occupancy_map() == slam.occupancy_map()
+
+
+def test_house_loop_closes_without_a_doubled_wall(house_run):
+    slam, world, truth, _ = house_run
     agreement, precision, ate = map_quality(slam, world, truth)
     assert slam.loop_closures
     assert precision >= 0.97  # a doubled wall would put many occupied cells off every true wall

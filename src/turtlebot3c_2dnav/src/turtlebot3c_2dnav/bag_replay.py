@@ -100,8 +100,10 @@ def read_bag(path, scan_topic="/scan", odom_topic="/odom", odom_frame="odom", ba
                     path, scan_topic, ", ".join(sorted(topics)) or "none"))
             connections = [c for c in reader.connections if c.topic in wanted]
             for connection in connections:  # types the store lacks (tf2_msgs) come with the bag
-                if connection.msgtype not in typestore.fielddefs and connection.msgdef.data:
-                    typestore.register(get_types_from_msg(connection.msgdef.data, connection.msgtype))
+                # rosbags >= 0.10 wraps the definition text; 0.9 (the last for Python 3.8) gives it plain.
+                definition = getattr(connection.msgdef, "data", connection.msgdef)
+                if connection.msgtype not in typestore.fielddefs and definition:
+                    typestore.register(get_types_from_msg(definition, connection.msgtype))
             inputs.duration = (reader.end_time - reader.start_time) * 1e-9 if reader.message_count else 0.0
             for connection, _, raw in reader.messages(connections=connections):
                 message = typestore.deserialize_ros1(raw, connection.msgtype)

@@ -108,6 +108,20 @@ class SlamConfig:
         return collections.OrderedDict((name, getattr(self, name)) for name in self.DEFAULTS)
 
 
+class MapRebuild:
+    """The map redrawn from keyframes at given poses (see Slam.map_rebuild)."""
+
+    def __init__(self, grid, keyframes, optimizations):
+        self.grid = grid
+        self.keyframes = keyframes          # [(ScanRays, pose)]
+        self.optimizations = optimizations  # the Slam's optimisation count when taken
+
+    def run(self):
+        for rays, pose in self.keyframes:
+            self.grid.apply(trace_scan(rays, pose, self.grid.resolution))
+        return self.grid
+
+
 class Keyframe:
     def __init__(self, stamp, rays, points, travel):
         self.stamp = stamp
@@ -126,6 +140,7 @@ class Slam:
         self.local_updates = collections.deque()
         self.global_grid = self._new_grid()
         self._global_dirty = False
+        self._optimizations = 0
         self._local_version = 0
         self._tracking = None      # (GridMatcher, low, high, version)
         self._scans = []           # (stamp, keyframe index, pose relative to it)
@@ -244,13 +259,39 @@ class Slam:
 
     def occupancy_map(self):
         """The whole map so far as a map_files.OccupancyMap (cells 100 / 0 / -1)."""
-        if self._global_dirty:
-            self.global_grid = self._new_grid()
-            for index, keyframe in enumerate(self.keyframes):
-                self.global_grid.apply(trace_scan(keyframe.rays, tuple(self.graph.poses[index]),
-                                                  self.config.resolution))
-            self._global_dirty = False
+        rebuild = self.map_rebuild()
+        if rebuild is not None:
+            rebuild.run()
+            self.adopt(rebuild)
         return self.global_grid.to_occupancy_map()
+
+    @property
+    def map_outdated(self):
+        """True after a loop closure until the map is redrawn (occupancy_map() or adopt())."""
+        return self._global_dirty
+
+    def map_rebuild(self):
+        """None while the map is up to date; after a loop closure moved keyframes, a MapRebuild.
+
+        Redrawing every keyframe takes a while in a big map: a node can run() the rebuild
+        without holding up scan processing, then hand it back with adopt().
+        """
+        if not self._global_dirty:
+            return None
+        keyframes = [(keyframe.rays, tuple(self.graph.poses[index])) for index, keyframe in enumerate(self.keyframes)]
+        return MapRebuild(self._new_grid(), keyframes, self._optimizations)
+
+    def adopt(self, rebuild):
+        """Take a finished MapRebuild as the map (adding keyframes made since); False if a new loop
+        closure has moved the keyframes again in the meantime."""
+        if not self._global_dirty or rebuild.optimizations != self._optimizations:
+            return False
+        for index in range(len(rebuild.keyframes), len(self.keyframes)):
+            rebuild.grid.apply(trace_scan(self.keyframes[index].rays, tuple(self.graph.poses[index]),
+                                          self.config.resolution))
+        self.global_grid = rebuild.grid
+        self._global_dirty = False
+        return True
 
     def trajectory(self):
         """(stamp, x, y, yaw) of every scan, on the optimised keyframe poses."""
@@ -326,4 +367,5 @@ class Slam:
         self.pose = compose(tuple(self.graph.poses[newest]), between(before, self.pose))
         self._rebuild_local_map()
         self._global_dirty = True
+        self._optimizations += 1
         self.map_version += 1
