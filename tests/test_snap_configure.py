@@ -1,8 +1,11 @@
 """The snap's options: defaults, validation by the configure hook (under dash), restarts, ROS network."""
 import os
+import signal
 
 import pytest
-from test_snap_support import install_turtlebot3c, main_command_line, user_environment
+from test_snap_support import install_turtlebot3c, main_command_line, pid_alive, user_environment
+
+from ros_harness import descendants, wait_until
 
 HOSTNAME = os.uname().nodename
 DEFAULTS = {"simulation": False, "turtlebot3-model": "waffle_pi", "lds-model": "LDS-01",
@@ -161,3 +164,14 @@ def test_library_path_has_no_empty_entry_that_would_mean_the_current_folder(syst
     entries = shell(system, "teleop", 'echo "$LD_LIBRARY_PATH"').split(":")
     assert "" not in entries
     assert any(entry.endswith("/blas") for entry in entries)  # snap-level, with the arch triplet filled in
+
+
+def test_teleop_killed_by_sigkill_restarts_and_its_orphaned_nodes_go_too(system, ros_master):
+    roslaunch = main_pid(system, "teleop")
+    nodes = wait_until(lambda: descendants(roslaunch), 30, "teleop's roslaunch started no node")
+    os.kill(roslaunch, signal.SIGKILL)  # roslaunch's nodes live in sessions of their own
+    wait_until(lambda: system.status("turtlebot3c", "teleop")["main_pid"] not in (None, roslaunch), 60,
+               "teleop was not restarted")
+    wait_until(lambda: not any(pid_alive(pid) for pid in nodes), 30, "the killed roslaunch's nodes survived")
+    assert system.status("turtlebot3c", "teleop")["restarts"] >= 1
+    ros_master.wait_for_service("/mux/select", timeout=60)
