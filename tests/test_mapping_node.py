@@ -100,10 +100,9 @@ def test_live_map_matches_the_simulated_world(session):
 
 def test_map_updates_are_rate_bounded(session):
     master = session["master"]
-    entries = master.probe.timed_messages("/map")
-    gaps = np.diff([entry["t"] for entry in entries])
-    assert len(entries) >= 2
-    assert gaps.min() >= 1.5  # map_update_interval 2.0 s, less delivery jitter
+    stamps = [message["header"]["stamp"] for message in master.probe.messages("/map")]
+    assert len(stamps) >= 2
+    assert np.diff(stamps).min() >= 2.0 - 0.01  # map_update_interval 2.0 s, not once per scan (5 Hz)
 
 
 def test_map_to_odom_transform_is_published(session):
