@@ -15,6 +15,7 @@ from turtlebot3c_2dnav.slam_evaluation import (
     drive_route,
     occupied_precision,
 )
+from turtlebot3c_2dnav.slam_messages import interpolate_pose, mount_from_transform
 from turtlebot3c_2dnav.slam_scan import ScanGeometry, scan_rays
 from turtlebot3c_2dnav.slam_se2 import between, compose, inverse, transform_points
 from turtlebot3c_sim.simulation import NoiseConfig, Simulation
@@ -59,6 +60,32 @@ def test_scan_with_wrong_number_of_ranges_is_rejected():
     geometry = ScanGeometry(0.0, 0.1, 10, 0.1, 10.0)
     with pytest.raises(ValueError, match="3 ranges, its geometry 10"):
         scan_rays(geometry, [1.0, 2.0, 3.0], 8.0)
+
+
+class _Vector:
+    def __init__(self, x=0.0, y=0.0, z=0.0, w=1.0):
+        self.x, self.y, self.z, self.w = x, y, z, w
+
+
+class _Transform:
+    def __init__(self, translation, rotation):
+        self.translation, self.rotation = _Vector(*translation), _Vector(*rotation)
+
+
+def test_lidar_mount_from_tf_knows_yaw_and_upside_down():
+    half = math.sqrt(0.5)
+    turned = mount_from_transform(_Transform((0.1, 0.02, 0.2), (0.0, 0.0, half, half)))  # yaw +90 degrees
+    assert turned == pytest.approx((0.1, 0.02, math.pi / 2, False))
+    flipped = mount_from_transform(_Transform((0.0, 0.0, 0.2), (1.0, 0.0, 0.0, 0.0)))  # roll 180 degrees
+    assert flipped[2] == pytest.approx(0.0) and flipped[3] is True
+
+
+def test_odometry_between_messages_is_interpolated_the_short_way_round():
+    before, after = (0.0, 0.0, math.pi - 0.1), (1.0, 2.0, -math.pi + 0.1)
+    x, y, yaw = interpolate_pose(before, after, 0.25)
+    assert (x, y) == pytest.approx((0.25, 0.5))
+    assert math.cos(yaw) == pytest.approx(math.cos(math.pi - 0.05))
+    assert math.sin(yaw) == pytest.approx(math.sin(math.pi - 0.05))
 
 
 # --- grids ------------------------------------------------------------------------------------
