@@ -39,7 +39,7 @@ def parse_args(argv):
     parser.add_argument("--snap-file", help="the .snap to install with --snap-cli snap")
     parser.add_argument("--out", default=os.path.join(tempfile.gettempdir(), "turtlebot3c-demo"),
                         help="folder for the pictures, the summary and the logs (default: %(default)s)")
-    parser.add_argument("--summary-json", help="also write the summary as JSON here")
+    parser.add_argument("--summary-json", help="also write the summary (OUT/summary.json) here")
     parser.add_argument("--no-setup", action="store_true", help="(scripts/demo) skip setup-env and build")
     parser.add_argument("--ros-setup", action="append", metavar="FILE",
                         help="(scripts/demo) source FILE instead of the build's install spaces (repeatable)")
@@ -398,8 +398,10 @@ class Demo:
         if hasattr(self, "map"):
             self.pictures()
         self.print_summary()
+        text = json.dumps(self.summary, indent=2) + "\n"
+        (self.out / "summary.json").write_text(text)
         if self.options.summary_json:
-            Path(self.options.summary_json).write_text(json.dumps(self.summary, indent=2) + "\n")
+            Path(self.options.summary_json).write_text(text)
         return 0 if self.summary["ok"] else 1
 
 
