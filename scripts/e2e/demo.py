@@ -23,7 +23,12 @@ GOAL_TOLERANCE = 0.25  # m between the goal and where the robot truly stopped (l
 
 
 def parse_args(argv):
-    parser = argparse.ArgumentParser(prog="scripts/demo", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(
+        prog="scripts/demo",
+        description="turtlebot3c end to end, headless: install the snap (through scripts/snapsim by default), "
+                    "map a simulated world while driving around it, save the map, navigate to goals on it. "
+                    "Prints progress and a summary; writes OUT/map_with_driven_path.png, "
+                    "OUT/navigation_paths.png and OUT/summary.json.")
     parser.add_argument("--real-robot", action="store_true",
                         help="simulation=false: the snap's drivers talk to the fake OpenCR board and LIDAR")
     parser.add_argument("--quick", action="store_true", help="a short tour and one goal (for the tests)")

@@ -10,10 +10,6 @@ import math
 
 import numpy as np
 
-from turtlebot3c_2dnav.costmap import Costmap
-from turtlebot3c_2dnav.global_planner import GlobalPlanner
-from turtlebot3c_2dnav.navigation_loop import world_layers
-
 SPIN = "spin"
 
 # Tours of turtlebot3_world (world frame, metres; spawn at (-2.0, -0.5)). The full tour
@@ -94,6 +90,11 @@ class PurePursuit:
 
 def plan_tour(world, start_xy, steps, robot_radius):
     """The tour's legs: for each step, either SPIN or a path (N x 2) from the previous point."""
+    # Imported here so that `scripts/demo --help` works before anything is built.
+    from turtlebot3c_2dnav.costmap import Costmap
+    from turtlebot3c_2dnav.global_planner import GlobalPlanner
+    from turtlebot3c_2dnav.navigation_loop import world_layers
+
     layers = world_layers(world)
     costmap = Costmap(layers.info, static_occupied=layers.occupied, robot_radius=robot_radius + 0.03,
                       inflation_radius=robot_radius + 0.35, cost_scaling_factor=4.0)
