@@ -62,9 +62,11 @@ def test_resampling_shrinks_a_converged_cloud_to_min_particles():
     assert particle_filter.particles.shape[0] > 1000
 
 
-def drive(world_name, model_name, seed, goals, set_up):
+def drive(world_name, model_name, seed, goals, set_up, start=None):
     """Drive the robot through goals on its true pose while a shadow filter localises it."""
     world = load_world(world_name)
+    if start is not None:
+        world.spawn_pose = start
     layers = world_layers(world)
     model = get_model(model_name)
     sim = Simulation(world, model_name, pose=world.spawn_pose, seed=seed)
@@ -98,3 +100,16 @@ def test_wrong_initial_pose_is_corrected_by_global_localization(world_name):
     errors = drive(world_name, "burger", 2, goals, wrong_then_global)
     position_error, heading_error = errors[-1]
     assert position_error < 0.05 and heading_error < math.radians(3)
+
+
+def test_a_confidently_wrong_pose_is_noticed_and_relocalised_without_being_asked():
+    filters = []
+
+    def wrong_and_sure(localizer, sim):
+        x, y, yaw = sim.pose
+        localizer.set_pose((x - 1.5, y - 1.0, yaw + 2.0), sim.odometry[:3], np.diag([1e-4, 1e-4, 1e-4]))
+        filters.append(localizer.filter)
+    errors = drive("house", "burger", 1, [(2.5, -2.0, 1.5), (3.5, 1.0, 0.0)], wrong_and_sure, start=(2.5, 2.0, 0.0))
+    assert filters[0].relocalizations == 1
+    for position_error, heading_error in errors:
+        assert position_error < 0.05 and heading_error < math.radians(3)

@@ -52,6 +52,12 @@ class AmclParams(NamedTuple):
     likelihood_scale_spread: float = 0.1
     converged_spread: float = 0.3  # m, position standard deviation of the main cluster
     converged_share: float = 0.9  # of the weight in the main cluster
+    # Lost: when, for lost_updates filter updates in a row, fewer than lost_fit of the beams
+    # end within lost_fit_distance of an obstacle seen from the estimate, the filter starts
+    # a global relocalisation by itself (a wrong initial pose, a kidnapped robot). 0: never.
+    lost_fit_distance: float = 0.2
+    lost_fit: float = 0.4
+    lost_updates: int = 8
     initial_cov_xx: float = 0.5 * 0.5
     initial_cov_yy: float = 0.5 * 0.5
     initial_cov_aa: float = (math.pi / 12.0) ** 2
@@ -129,6 +135,9 @@ class ParticleFilter:
         self._w_slow = 0.0
         self._w_fast = 0.0
         self.estimate: Optional[Estimate] = None
+        self.fit = 1.0  # share of beams that fit the map from the estimate, last update
+        self._lost_count = 0
+        self.relocalizations = 0  # global relocalisations started because the robot was lost
 
     @property
     def initialized(self) -> bool:
@@ -163,6 +172,7 @@ class ParticleFilter:
         return np.column_stack([x, y, yaw])
 
     def _reset(self, particles):
+        self._lost_count = 0
         self.particles = particles
         self.weights = np.full(particles.shape[0], 1.0 / particles.shape[0])
         self._force_update = True
@@ -194,7 +204,22 @@ class ParticleFilter:
         self._updates += 1
         if self._updates % max(1, self.params.resample_interval) == 0:
             self.resample()
+        if self._lost(ranges, angles, range_min, sensor_offset):
+            self.global_localization()
+            self.relocalizations += 1
         return True
+
+    def _lost(self, ranges, angles, range_min, sensor_offset) -> bool:
+        p = self.params
+        if p.lost_updates <= 0 or self.estimate is None:
+            return False
+        ranges, angles = self.select_beams(ranges, angles, range_min)
+        if ranges.size == 0:
+            return False
+        distances = self.field.end_point_distances(self.estimate.pose, ranges, angles, sensor_offset)
+        self.fit = float((distances < p.lost_fit_distance).mean())
+        self._lost_count = self._lost_count + 1 if self.fit < p.lost_fit else 0
+        return self._lost_count >= p.lost_updates
 
     def apply_motion(self, odom_from, odom_to):
         """Move every particle by the odometry increment, with sampled noise."""

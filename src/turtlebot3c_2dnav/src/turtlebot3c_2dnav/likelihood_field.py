@@ -91,6 +91,16 @@ class LikelihoodField:
         result[inside] = self.distances[row[inside], col[inside]]
         return result
 
+    def end_point_distances(self, pose, ranges, angles, sensor_offset=(0.0, 0.0, 0.0)):
+        """Distance (m) from each beam's end point to the nearest obstacle, seen from one pose."""
+        x, y, yaw = pose
+        sx, sy, syaw = sensor_offset
+        origin_x = x + math.cos(yaw) * sx - math.sin(yaw) * sy
+        origin_y = y + math.sin(yaw) * sx + math.cos(yaw) * sy
+        directions = yaw + syaw + np.asarray(angles)
+        return self.distance_at(origin_x + np.asarray(ranges) * np.cos(directions),
+                                origin_y + np.asarray(ranges) * np.sin(directions))
+
     def log_likelihood(self, poses, ranges, angles, sensor_offset=(0.0, 0.0, 0.0)):
         """Sum over beams of log p(beam | pose) for each of N poses (N x 3 array).
 
