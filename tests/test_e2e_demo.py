@@ -67,12 +67,13 @@ def test_quick_demo_on_the_fake_robot_maps_and_navigates_through_the_real_driver
 
 # --- the pieces, without ROS ------------------------------------------------------------
 
+@pytest.mark.parametrize("world_name", sorted(explorer.TOURS))
 @pytest.mark.parametrize("length", ["quick", "full"])
-def test_tour_driven_in_the_stepping_simulator_visits_every_waypoint_without_contact(length):
-    world = load_world("turtlebot3_world")
+def test_tour_driven_in_the_stepping_simulator_visits_every_waypoint_without_contact(world_name, length):
+    world = load_world(world_name)
     model = get_model("waffle_pi")
     sim = Simulation(world, model="waffle_pi", pose=world.spawn_pose, noise=NoiseConfig.none())
-    steps, _ = explorer.tour_for("turtlebot3_world", length)
+    steps, _ = explorer.tour_for(world_name, length)
     legs = explorer.plan_tour(world, sim.pose[:2], steps, model.robot_radius)
     for leg in legs:
         controller = explorer.Spin(0.8) if leg is explorer.SPIN else explorer.PurePursuit(leg, 0.18, 0.8)
@@ -89,11 +90,12 @@ def test_tour_driven_in_the_stepping_simulator_visits_every_waypoint_without_con
     assert sim.collisions == 0
 
 
-def test_goals_of_every_tour_lie_in_free_space_clear_of_the_robot():
-    world = load_world("turtlebot3_world")
+@pytest.mark.parametrize("world_name", sorted(explorer.TOURS))
+def test_goals_of_every_tour_lie_in_free_space_clear_of_the_robot(world_name):
+    world = load_world(world_name)
     radius = get_model("waffle_pi").robot_radius
     for length in ("quick", "full"):
-        _, goals = explorer.tour_for("turtlebot3_world", length)
+        _, goals = explorer.tour_for(world_name, length)
         for x, y, _ in goals:
             assert not world.contains([(x, y)])[0] and world.clearance(x, y) > radius + 0.1, (x, y)
 

@@ -201,7 +201,13 @@ class Demo:
             finished = self.link.follow(controller, timeout, on_step=self.record_slam_pose)
             self.progress.say(f"  leg {index}/{len(legs)}: {what}: "
                               f"{'done' if finished else 'GAVE UP'} in {time.monotonic() - leg_started:.0f} s")
-        time.sleep(2.0)  # the last scans reach the map (SLAM publishes it at a bounded rate)
+        # SLAM publishes its map at a bounded rate (every 2 s), and only when it changed: give
+        # the last scans time to reach it, unless it was already up to date.
+        driven_until = time.monotonic()
+        try:
+            wait_for(lambda: self.link.map_updated_since(driven_until), 5, "a newer map")
+        except TimeoutError:
+            pass
         self.truth_path = self.link.stop_recording()
         self.final_slam_pose = wait_for(self.link.map_pose, 10, "SLAM's last pose")
         driven = evaluation.path_length([(x, y) for _, x, y, _ in self.truth_path])

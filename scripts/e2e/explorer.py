@@ -22,6 +22,13 @@ TOURS = {
                  (-1.9, -0.6), SPIN],
         "quick": [SPIN, (-1.5, -1.55), (-0.55, -1.8), (-0.55, -0.55), SPIN],
     },
+    # The house (spawn (-2.5, -2.0) in the kitchen): round the loop of the four rooms,
+    # kitchen, hall, living room, bedroom, and back, so SLAM has a loop to close.
+    "house": {
+        "full": [SPIN, (-1.0, -2.0), (1.0, -2.0), (3.5, -1.5), (3.0, -0.7), (3.0, 0.6), (4.2, 1.5), (1.5, 1.5),
+                 (1.0, 2.0), (-1.0, 2.0), (-3.5, 1.6), (-3.0, 0.8), (-3.0, -0.8), (-2.5, -2.0), SPIN],
+        "quick": [SPIN, (-1.0, -2.0), (1.0, -2.0), (2.5, -2.0), SPIN],
+    },
 }
 
 # Navigation goals (world frame: x, y, yaw) reached on the saved map after mapping.
@@ -29,6 +36,10 @@ GOALS = {
     "turtlebot3_world": {
         "full": [(1.7, -1.2, math.pi / 2), (1.7, 1.2, math.pi), (-1.5, 1.55, -math.pi / 2), (-2.0, -0.5, 0.0)],
         "quick": [(-1.5, -1.55, math.pi)],
+    },
+    "house": {
+        "full": [(3.2, -1.8, 0.0), (4.0, 0.8, math.pi / 2), (-1.2, 1.5, math.pi), (-2.5, -2.0, 0.0)],
+        "quick": [(-1.0, -2.0, math.pi)],
     },
 }
 

@@ -15,7 +15,7 @@ import tf2_ros
 from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
 from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
-from nav_msgs.msg import Odometry, Path
+from nav_msgs.msg import MapMetaData, Odometry, Path
 
 TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException)
 STATUS_NAMES = {value: name for name, value in vars(GoalStatus).items() if name.isupper() and isinstance(value, int)}
@@ -39,6 +39,8 @@ class RosLink:
         self.initial_pose = rospy.Publisher("initialpose", PoseWithCovarianceStamped, queue_size=1, latch=True)
         rospy.Subscriber("/sim/ground_truth", Odometry, self._on_truth, queue_size=5)
         self.amcl_poses = []        # (time, x, y) of /amcl_pose
+        self.map_updates = []       # times /map_metadata came (SLAM publishes it with every map)
+        rospy.Subscriber("/map_metadata", MapMetaData, self._on_map_metadata, queue_size=5)
         rospy.Subscriber("/move_base/plan", Path, self._on_plan, queue_size=5)
         rospy.Subscriber("/amcl_pose", PoseWithCovarianceStamped, self._on_amcl_pose, queue_size=5)
 
@@ -49,6 +51,14 @@ class RosLink:
             self.truth = sample
             if self.recording:
                 self.truth_history.append(sample)
+
+    def _on_map_metadata(self, _message):
+        with self.lock:
+            self.map_updates.append(time.monotonic())
+
+    def map_updated_since(self, since):
+        with self.lock:
+            return any(stamp >= since for stamp in self.map_updates)
 
     def _on_amcl_pose(self, message):
         position = message.pose.pose.position
