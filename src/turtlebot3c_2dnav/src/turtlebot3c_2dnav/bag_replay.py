@@ -102,7 +102,7 @@ def read_bag(path, scan_topic="/scan", odom_topic="/odom", odom_frame="odom", ba
             for connection in connections:  # types the store lacks (tf2_msgs) come with the bag
                 # rosbags >= 0.10 wraps the definition text; 0.9 (the last for Python 3.8) gives it plain.
                 definition = getattr(connection.msgdef, "data", connection.msgdef)
-                if connection.msgtype not in typestore.fielddefs and definition:
+                if connection.msgtype not in typestore.types and definition:
                     typestore.register(get_types_from_msg(definition, connection.msgtype))
             inputs.duration = (reader.end_time - reader.start_time) * 1e-9 if reader.message_count else 0.0
             for connection, _, raw in reader.messages(connections=connections):
