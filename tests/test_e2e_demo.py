@@ -76,7 +76,7 @@ def test_tour_driven_in_the_stepping_simulator_visits_every_waypoint_without_con
     steps, _ = explorer.tour_for(world_name, length)
     legs = explorer.plan_tour(world, sim.pose[:2], steps, model.robot_radius)
     for leg in legs:
-        controller = explorer.Spin(0.8) if leg is explorer.SPIN else explorer.PurePursuit(leg, 0.18, 0.8)
+        controller = explorer.Spin(0.4) if leg is explorer.SPIN else explorer.PurePursuit(leg, 0.18, 0.8)
         for _ in range(3000):  # 300 s of simulated time at most per leg
             command = controller.command(sim.pose)
             if command is None:

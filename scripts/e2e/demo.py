@@ -192,15 +192,18 @@ class Demo:
         self.link.start_recording()
         for index, leg in enumerate(legs, 1):
             if leg is explorer.SPIN:
-                controller, what, timeout = explorer.Spin(min(max_angular, 0.4)), "a turn on the spot", 90
+                # At half the turn rate: a whole revolution of scans seen slowly, as a person would.
+                controller, what, timeout = explorer.Spin(max_angular / 2), "a turn on the spot", 90
             else:
                 controller = explorer.PurePursuit(leg, max_linear, max_angular)
                 what = "to ({:.2f}, {:.2f}), {:.1f} m".format(*leg[-1], evaluation.path_length(leg))
                 timeout = 30 + 3 * evaluation.path_length(leg) / max_linear
             leg_started = time.monotonic()
             finished = self.link.follow(controller, timeout, on_step=self.record_slam_pose)
+            stale = self.link.stale_ticks
+            stale = f" (held still {stale} times: no fresh ground truth)" if stale else ""
             self.progress.say(f"  leg {index}/{len(legs)}: {what}: "
-                              f"{'done' if finished else 'GAVE UP'} in {time.monotonic() - leg_started:.0f} s")
+                              f"{'done' if finished else 'GAVE UP'} in {time.monotonic() - leg_started:.0f} s{stale}")
         # SLAM publishes its map at a bounded rate (every 2 s), and only when it changed: give
         # the last scans time to reach it, unless it was already up to date.
         driven_until = time.monotonic()

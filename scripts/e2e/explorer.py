@@ -53,8 +53,8 @@ def tour_for(world_name, length):
 class Spin:
     """Turn once around in place (counter-clockwise), tracking the yaw turned so far."""
 
-    def __init__(self, max_angular):
-        self.rate = 0.5 * max_angular
+    def __init__(self, rate):
+        self.rate = rate
         self.turned = 0.0
         self.last_yaw = None
 

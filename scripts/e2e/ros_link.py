@@ -79,7 +79,7 @@ class RosLink:
 
     # --- what the robot is doing ----------------------------------------------------
 
-    def true_pose(self, max_age=1.0):
+    def true_pose(self, max_age=0.5):
         with self.lock:
             sample = self.truth
         if sample is None or time.monotonic() - sample[0] > max_age:
@@ -127,9 +127,11 @@ class RosLink:
         """Publish controller.command(true pose) on key_vel at 10 Hz until it is done; True if it finished."""
         deadline = time.monotonic() + timeout
         next_tick = time.monotonic()
+        self.stale_ticks = 0
         try:
             while time.monotonic() < deadline:
                 pose = self.true_pose()
+                self.stale_ticks += pose is None
                 command = (0.0, 0.0) if pose is None else controller.command(pose)
                 if command is None:
                     return True
