@@ -63,6 +63,40 @@ def costmap_params_for_model(model, **overrides) -> CostmapParams:
     return CostmapParams(robot_radius=circumscribed)._replace(**overrides)
 
 
+class MoveBaseConfig(NamedTuple):
+    costmap: CostmapParams
+    dwa: DwaParams
+    nav: NavParams
+    cost_weight: float
+
+
+def _override(defaults, values):
+    """`defaults` (a NamedTuple) with the fields found in the mapping `values`, converted to
+    the default's type; other keys (frames, other sections) are not this tuple's business."""
+    found = {name: type(getattr(defaults, name))(values[name]) for name in defaults._fields if name in values}
+    return defaults._replace(**found)
+
+
+def move_base_config(values, model) -> MoveBaseConfig:
+    """move_base's settings from its parameters (config/move_base_<model>.yaml as a dict:
+    move_base's own keys at the top, then costmap:, planner:, DWAPlannerROS: sections),
+    on top of the model's defaults. Speeds never exceed what the model's firmware allows."""
+    dwa = _override(dwa_params_for_model(model), values.get("DWAPlannerROS") or {})
+    dwa = dwa._replace(controller_frequency=float(values.get("controller_frequency", dwa.controller_frequency)),
+                       max_vel_x=min(dwa.max_vel_x, model.max_linear_velocity),
+                       max_vel_theta=min(dwa.max_vel_theta, model.max_angular_velocity))
+    return MoveBaseConfig(
+        costmap=_override(costmap_params_for_model(model), values.get("costmap") or {}),
+        dwa=dwa,
+        nav=_override(NavParams(), values),
+        cost_weight=float((values.get("planner") or {}).get("cost_weight", 1.0)))
+
+
+def amcl_params(values) -> AmclParams:
+    """The particle filter's settings among amcl's parameters (config/amcl.yaml as a dict)."""
+    return _override(AmclParams(), values)
+
+
 def make_costmaps(layers: MapLayers, params: CostmapParams):
     radius = params.robot_radius + params.safety_margin
     common = dict(robot_radius=radius, inflation_radius=params.inflation_radius,
