@@ -43,7 +43,7 @@ def assert_demo_mapped_and_navigated(done, summary, report):
     assert done.returncode == 0 and summary["ok"], report
     assert "demo summary" in done.stdout and "goals reached: 1/1" in done.stdout, report
     assert DATED_MAP.match(os.path.basename(summary["map_file"])), summary["map_file"]
-    assert summary["maps_in_folder"] == sorted([os.path.basename(summary["map_file"]), "current_map.yaml"])
+    assert {os.path.basename(summary["map_file"]), "current_map.yaml"} <= set(summary["maps_in_folder"])
     assert summary["map_agreement"] >= 0.9, report
     assert summary["map_coverage"] >= 0.3, report
     goal = summary["goals"][0]

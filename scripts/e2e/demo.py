@@ -219,12 +219,13 @@ class Demo:
 
         self.progress.step("mapping-stop", "snap stop turtlebot3c.mapping (saves the map, makes it current)")
         self.snap.stop("mapping")
-        current = self.snap.map_dir / "current_map.yaml"
-        if not current.exists():
-            raise RuntimeError(f"no {current} after stopping mapping (snap logs:\n{self.snap.logs('40')})")
+        current = self.snap.current_map()
+        if current is None:
+            raise RuntimeError(f"no current_map.yaml in {' or '.join(map(str, self.snap.map_dirs))} after "
+                               f"stopping mapping\n{self.snap.logs('40')}")
         self.map_file = current.resolve()
         # The snap's map folder may go with the snapsim root: keep a copy beside the pictures.
-        shutil.copytree(self.snap.map_dir, self.out / "maps", symlinks=True)
+        shutil.copytree(current.parent, self.out / "maps", symlinks=True)
         self.load_saved_map()
         self.progress.done(f"current_map.yaml -> {self.map_file.name}")
 
@@ -257,7 +258,7 @@ class Demo:
             "map_known_cells": score.known_cells,
             "map_agreement": round(score.agreement, 4),
             "map_coverage": round(score.coverage, 4),
-            "maps_in_folder": sorted(path.name for path in self.snap.map_dir.glob("*.yaml")),
+            "maps_in_folder": sorted(path.name for path in self.map_file.parent.glob("*.yaml")),
         })
 
     # --- navigation -----------------------------------------------------------------------

@@ -15,6 +15,8 @@ SNAP = "turtlebot3c"
 REPO = Path(__file__).resolve().parent.parent.parent
 SNAPSIM = REPO / "scripts" / "snapsim"
 SERVICES = ("core", "teleop", "mapping", "navigation")
+# Where the snap keeps its maps: $SNAP_COMMON/maps, or (before that) the services' $SNAP_USER_COMMON/map.
+MAP_DIRS = (f"/var/snap/{SNAP}/common/maps", f"/root/snap/{SNAP}/common/map")
 
 
 class SnapCommandError(RuntimeError):
@@ -53,6 +55,13 @@ class SnapCommandLine:
     def logs(self, lines="all"):
         return self.run("logs", "-n", lines, SNAP, check=False).stdout
 
+    def current_map(self):
+        """The installed current_map.yaml (in the first map folder that has one), or None."""
+        for folder in self.map_dirs:
+            if (folder / "current_map.yaml").exists():
+                return folder / "current_map.yaml"
+        return None
+
     def active_services(self):
         """Names of the snap's services that are active now."""
         table = self.run("services", SNAP).stdout.splitlines()[1:]
@@ -80,9 +89,8 @@ class Snapsim(SnapCommandLine):
         return self.run("install", project_dir, "--dangerous").stdout.strip()
 
     @property
-    def map_dir(self):
-        """$SNAP_USER_COMMON/map of the services (they run as root)."""
-        return self.root / "root" / "snap" / SNAP / "common" / "map"
+    def map_dirs(self):
+        return [self.root / folder.lstrip("/") for folder in MAP_DIRS]
 
     def finish(self):
         """Remove the snap (its services stop) and make sure nothing of this root runs on."""
@@ -114,8 +122,8 @@ class RealSnap(SnapCommandLine):
         return self.run("install", self.snap_file, "--dangerous").stdout.strip()
 
     @property
-    def map_dir(self):
-        return Path("/root/snap") / SNAP / "common" / "map"
+    def map_dirs(self):
+        return [Path(folder) for folder in MAP_DIRS]
 
     def finish(self):
         for app in SERVICES:
