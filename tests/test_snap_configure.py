@@ -9,7 +9,8 @@ from ros_harness import descendants, wait_until
 
 HOSTNAME = os.uname().nodename
 DEFAULTS = {"simulation": False, "turtlebot3-model": "waffle_pi", "lds-model": "LDS-01",
-            "ros-master-host": f"{HOSTNAME}.local", "opencr-port": "/dev/ttyACM0", "lds-port": "/dev/ttyUSB0"}
+            "ros-master-host": f"{HOSTNAME}.local", "opencr-port": "/dev/ttyACM0", "lds-port": "/dev/ttyUSB0",
+            "map": "latest"}
 
 
 @pytest.fixture(scope="module")

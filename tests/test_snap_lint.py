@@ -97,7 +97,7 @@ def test_description_documents_every_option_and_its_default():
     description = project()["description"]
     defaults = install_defaults()
     assert set(defaults) == {"simulation", "turtlebot3-model", "lds-model", "ros-master-host", "opencr-port",
-                             "lds-port"}
+                             "lds-port", "map"}
     entries = {key: " ".join(text.split()) for key, text in
                re.findall(r"^- ([a-z0-9-]+): (.*?)(?=^- |^$|\Z)", description, re.MULTILINE | re.DOTALL)}
     for key, value in defaults.items():
@@ -112,7 +112,8 @@ def test_hooks_are_dash_scripts_and_executable():
 
 
 def test_every_local_script_is_used_by_an_app_or_another_script():
-    text = SNAPCRAFT_YAML.read_text() + "".join(path.read_text() for path in (REPO / "snap" / "local").iterdir())
+    text = SNAPCRAFT_YAML.read_text() + "".join(
+        path.read_text() for folder in ("local", "hooks") for path in (REPO / "snap" / folder).iterdir())
     for script in (REPO / "snap" / "local").glob("*.sh"):
         uses = text.count(script.name) - script.read_text().count(script.name)
         assert uses > 0, f"{script.name} is shipped but nothing runs it"

@@ -311,7 +311,7 @@ def trace(system, snap="demo"):
 
 # --- the real turtlebot3c snap against a test roscore -----------------------------------
 
-MAP_FOLDER = "root/snap/turtlebot3c/common/map"  # $SNAP_USER_COMMON/map of the services (root)
+MAP_FOLDER = "var/snap/turtlebot3c/common/maps"  # $SNAP_COMMON/maps, for every app and the owner
 
 
 def install_turtlebot3c(folder, master):

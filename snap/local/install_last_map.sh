@@ -6,10 +6,12 @@
 #
 # Every map is kept. The link is replaced by rename(2), so current_map.yaml is
 # always either the previous map or the new one, never missing or half-written.
-# When no new map was saved, the previous current map stays.
+# When no new map was saved, the previous current map stays. When the owner
+# chose a map (snap set turtlebot3c map=NAME), the new map is kept and listed
+# but that choice stays current; with map=latest (the default) it becomes current.
 set -eu
 
-map_dir="$SNAP_USER_COMMON/map"
+map_dir="$SNAP_COMMON/maps"
 new_yaml="$map_dir/new_map.yaml"
 new_pgm="$map_dir/new_map.pgm"
 new_bag="$map_dir/new_map.bag"
@@ -60,6 +62,20 @@ sync -- "$map_dir/.$name.yaml.tmp" "$map_dir/$name.pgm"
 mv -- "$map_dir/.$name.yaml.tmp" "$map_dir/$name.yaml"
 rm -f -- "$new_yaml"
 keep_recording "$name"
+
+chosen="$(snapctl get map)"
+case "$chosen" in
+  "" | latest) ;;
+  *)
+    if [ -e "$current" ]; then
+      sync -- "$map_dir"
+      echo "install_last_map: the new map is saved as $map_dir/$name.yaml; the current map stays" \
+        "'$chosen' (chosen with map=$chosen). To use the new one: sudo snap set $SNAP_INSTANCE_NAME map=$name" \
+        "(or map=latest to always use the newest)"
+      exit 0
+    fi
+    ;;
+esac
 
 ln -sfn -- "$name.yaml" "$map_dir/.current_map.yaml.tmp"
 mv -fT -- "$map_dir/.current_map.yaml.tmp" "$current"

@@ -5,5 +5,9 @@
 # wraps the stop-command, and saving the map must not depend on teleop being up.
 set -eu
 
+# The session's bag goes beside the maps; install_last_map.sh gives it its map's name.
+map_dir="$SNAP_COMMON/maps"
+mkdir -p "$map_dir"
+
 export MUX_INPUT=key_vel
-exec mux_select.sh model_launcher.sh turtlebot3c_2dnav turtlebot3c_mapping.launch
+exec mux_select.sh model_launcher.sh turtlebot3c_2dnav turtlebot3c_mapping.launch "bag:=$map_dir/new_map.bag"

@@ -5,7 +5,7 @@
 # service stops instead of being restarted in a loop.
 set -eu
 
-map_file="$SNAP_USER_COMMON/map/current_map.yaml"
+map_file="$SNAP_COMMON/maps/current_map.yaml"
 
 if [ ! -r "$map_file" ]; then
   echo "navigation: no map to navigate on: $map_file does not exist." \

@@ -1,12 +1,12 @@
 #!/bin/bash
 # mapping's stop-command: save the map SLAM has built so far as
-# $SNAP_USER_COMMON/map/new_map.{pgm,yaml}, for install_last_map.sh to install.
+# $SNAP_COMMON/maps/new_map.{pgm,yaml}, for install_last_map.sh to install.
 #
 # The map is written in a private folder and moved in only when complete
 # (image first, YAML last), so new_map.yaml is never half-written.
 set -eu
 
-map_dir="$SNAP_USER_COMMON/map"
+map_dir="$SNAP_COMMON/maps"
 mkdir -p "$map_dir"
 # Left by a save that was killed (stop-timeout, power loss): never a complete map.
 rm -rf -- "$map_dir"/.saving.*
