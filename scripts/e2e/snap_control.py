@@ -53,7 +53,8 @@ class SnapCommandLine:
         return self.run("restart", *[f"{SNAP}.{app}" for app in apps])
 
     def logs(self, lines="all"):
-        return self.run("logs", "-n", lines, SNAP, check=False).stdout
+        done = self.run("logs", "-n", lines, SNAP, check=False)
+        return done.stdout + done.stderr
 
     def current_map(self):
         """The installed current_map.yaml (in the first map folder that has one), or None."""
