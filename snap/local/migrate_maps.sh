@@ -43,7 +43,7 @@ migrated_yaml() {
   sed "s|^image: *\\([\"']\\{0,1\\}\\)$old_dir/|image: \\1|" "$1"
 }
 
-# Put file $1 of the old folder into the new one; fails (status 1) if a different file has its name.
+# Put file $1 of the old folder into the new one (a different file under its name was ruled out).
 place() {
   local name="$1" source="$old_dir/$1" target="$new_dir/$1" staged="$new_dir/.$1.migrating"
   if [[ "$name" == *.yaml ]]; then
@@ -93,15 +93,26 @@ for path in "$old_dir"/*; do
   fi
 done
 
+# A name taken in the new folder by a different file keeps that file's whole map where it is.
+clashes() {
+  local name="$1" target="$new_dir/$1"
+  if [ ! -e "$target" ] && [ ! -L "$target" ]; then
+    return 1
+  fi
+  ! is_placed "$name"
+}
 declare -A clashed=()
 for name in ${files[@]+"${files[@]}"} ${yamls[@]+"${yamls[@]}"}; do
-  stem="$(stem_of "$name")"
-  if [ -n "${clashed[$stem]:-}" ]; then
-    continue
-  fi
-  if ! place "$name"; then
+  if clashes "$name"; then
+    stem="$(stem_of "$name")"
     clashed[$stem]=1
     say "$new_dir/$name exists and differs from $old_dir/$name: map $stem stays in $old_dir" >&2
+  fi
+done
+
+for name in ${files[@]+"${files[@]}"} ${yamls[@]+"${yamls[@]}"}; do
+  if [ -z "${clashed[$(stem_of "$name")]:-}" ]; then
+    place "$name"
   fi
 done
 
@@ -116,7 +127,7 @@ sync -- "$new_dir"
 
 # Only now does anything leave the old folder, and only what is in place.
 for name in ${files[@]+"${files[@]}"} ${yamls[@]+"${yamls[@]}"}; do
-  if is_placed "$name"; then
+  if [ -z "${clashed[$(stem_of "$name")]:-}" ] && is_placed "$name"; then
     rm -f -- "$old_dir/$name"
   fi
 done
