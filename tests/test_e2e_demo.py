@@ -33,7 +33,7 @@ def run_demo(folder, *args):
     summary_file = folder / "summary.json"
     done = subprocess.run([str(DEMO), "--no-setup", "--quick", "--out", str(folder / "out"),
                            "--summary-json", str(summary_file), *args],
-                          env=env, capture_output=True, text=True, timeout=280)
+                          env=env, capture_output=True, text=True, timeout=400)
     report = f"exit {done.returncode}\n--- stdout\n{done.stdout[-6000:]}\n--- stderr\n{done.stderr[-4000:]}"
     assert summary_file.exists(), report
     return done, json.loads(summary_file.read_text()), report
@@ -53,12 +53,15 @@ def assert_demo_mapped_and_navigated(done, summary, report):
             assert picture.format == "PNG" and picture.width >= 100 and picture.height >= 100
 
 
+# About 2-3 minutes each on a loaded 2-core machine; the deadlines leave room for worse.
+@pytest.mark.timeout(420)
 def test_quick_demo_in_simulation_maps_the_world_and_reaches_the_goal_on_the_saved_map(tmp_path):
     done, summary, report = run_demo(tmp_path)
     assert_demo_mapped_and_navigated(done, summary, report)
     assert summary["mode"] == "simulation"
 
 
+@pytest.mark.timeout(420)
 def test_quick_demo_on_the_fake_robot_maps_and_navigates_through_the_real_drivers(tmp_path):
     done, summary, report = run_demo(tmp_path, "--real-robot")
     assert_demo_mapped_and_navigated(done, summary, report)

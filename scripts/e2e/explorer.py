@@ -14,13 +14,13 @@ SPIN = "spin"
 
 # Tours of turtlebot3_world (world frame, metres; spawn at (-2.0, -0.5)). The full tour
 # goes round the ring of pillars between them and the hexagons, then snakes through the
-# lanes between the pillars; the quick one (for the test) sees the world from one side.
+# lanes between the pillars; the quick one (for the test) sees the world from the lane below them.
 TOURS = {
     "turtlebot3_world": {
         "full": [SPIN, (-1.5, -1.55), (0.55, -1.8), (1.7, -1.2), (1.8, 0.0), (1.7, 1.2), (-0.55, 1.8),
                  (-1.5, 1.55), (-2.0, 0.4), (-0.55, 0.55), (0.55, 0.55), (0.55, -0.55), (-0.55, -0.55),
                  (-1.9, -0.6), SPIN],
-        "quick": [SPIN, (-1.5, -1.55), (-0.55, -1.8), (-0.55, -0.55), SPIN],
+        "quick": [SPIN, (-1.5, -1.55), (-0.55, -1.8), (0.55, -1.8)],
     },
     # The house (spawn (-2.5, -2.0) in the kitchen): round the loop of the four rooms,
     # kitchen, hall, living room, bedroom, and back, so SLAM has a loop to close.
@@ -35,7 +35,9 @@ TOURS = {
 GOALS = {
     "turtlebot3_world": {
         "full": [(1.7, -1.2, math.pi / 2), (1.7, 1.2, math.pi), (-1.5, 1.55, -math.pi / 2), (-2.0, -0.5, 0.0)],
-        "quick": [(-1.5, -1.55, math.pi)],
+        # In the wide lane below the pillars, 0.64 m from anything, so that on the real-robot path
+        # (scans smeared while the robot turns, see the README) phantom obstacles do not reach it.
+        "quick": [(-0.55, -1.9, math.pi)],
     },
     "house": {
         "full": [(3.2, -1.8, 0.0), (4.0, 0.8, math.pi / 2), (-1.2, 1.5, math.pi), (-2.5, -2.0, 0.0)],
