@@ -7,6 +7,7 @@ current_map.yaml names a complete map, the new one or the previous one, which
 stays usable.
 """
 import os
+import shutil
 import signal
 import subprocess
 import time
@@ -23,7 +24,7 @@ from turtlebot3c_2dnav.map_files import load_map
 SIDE = 1000  # cells: 50 m x 50 m at 5 cm, far more than a TurtleBot maps in one session
 LARGE_MAP = {"header": {"frame_id": "map"},
              "info": {"resolution": 0.05, "width": SIDE, "height": SIDE,
-                      "origin": {"position": {"x": -37.5, "y": -37.5}}},
+                      "origin": {"position": {"x": -25.0, "y": -25.0}}},
              "data": ([0] * (SIDE - 20) + [100] * 10 + [-1] * 10) * SIDE}
 
 
@@ -46,7 +47,10 @@ def maps(system, ros_master):
     folder = system.root / MAP_FOLDER
     folder.mkdir(parents=True, exist_ok=True)
     for path in folder.iterdir():
-        path.unlink()
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)  # a killed save's private folder
+        else:
+            path.unlink()
     saved_map(folder)
     shell(system, "mapping", "install_last_map.sh", ros_master.uri)
     return folder
