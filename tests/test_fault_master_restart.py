@@ -19,7 +19,7 @@ def test_a_new_run_id_or_pid_after_an_outage_is_a_restart_reported_once():
     watch.observe(None)
     assert watch.observe(master_identity("run-2", 100))
     assert not watch.observe(master_identity("run-2", 100))
-    assert watch.observe(master_identity(None, 200))  # a bare rosmaster has no /run_id: its pid tells
+    assert watch.observe(master_identity("run-2", 200))
 
 
 def test_only_parameters_the_new_master_lacks_are_restored():

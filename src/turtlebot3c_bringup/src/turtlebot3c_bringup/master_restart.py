@@ -26,9 +26,9 @@ class MasterWatch:
         return restarted
 
 
-def master_identity(run_id: Optional[str], pid: int) -> str:
-    """roscore sets a fresh /run_id; a master started without one is told apart by its pid."""
-    return f"{run_id or ''}:{pid}"
+def master_identity(run_id: str, pid: int) -> str:
+    """roscore sets a fresh /run_id at every start; with the pid it tells masters apart."""
+    return f"{run_id}:{pid}"
 
 
 def missing_parameters(kept: Dict[str, object], present: Iterable[str]) -> Dict[str, object]:
