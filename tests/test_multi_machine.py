@@ -187,3 +187,36 @@ def test_a_wrong_ros_master_host_fails_clearly_instead_of_hanging(machines):
     finally:
         session.close()
         remote.snapsim("set", "turtlebot3c", "ros-master-host=tb3c-robot.local")
+
+
+def robot_master_pid(robot_host):
+    done = subprocess.run(["ip", "netns", "pids", robot_host.namespace], capture_output=True, text=True)
+    for pid in done.stdout.split():
+        try:
+            words = open(f"/proc/{pid}/cmdline", "rb").read().split(b"\0")
+        except OSError:
+            continue
+        if any(word.endswith(b"/rosmaster") for word in words):
+            return int(pid)
+    return None
+
+
+def test_a_killed_master_on_the_robot_comes_back_with_every_daemon_node(machines, ros_env, tmp_path):
+    robot, _, _, _ = machines
+    master = robot_master_pid(robot.host)
+    assert master, "no rosmaster runs on the robot"
+    restarts = {app: robot.status("turtlebot3c", app)["main_pid"] for app in ("core", "teleop")}
+    ros_harness.kill_quietly(master, 9)
+    wait_until(lambda: robot_master_pid(robot.host) not in (None, master), 90,
+               lambda: f"no new master on the robot:\n{robot.logs('turtlebot3c')}")
+    probe = RosProbe(RemoteGraph(robot.host, ros_env, tmp_path / "after-restart"))
+    try:
+        # A fresh subscriber finds the daemons' nodes again: they registered with the new master.
+        probe.wait_for_message("/mux/selected", "std_msgs/String", start=0, timeout=90)
+        probe.wait_for_message("/tf_static", "tf2_msgs/TFMessage", start=0, timeout=90)
+        probe.call("/mux/select", {"topic": "key_vel"}, timeout=30)
+    finally:
+        probe.close()
+    statuses = {app: robot.status("turtlebot3c", app) for app in restarts}
+    assert all(status["state"] == "active" for status in statuses.values()), statuses
+    print(f"master killed on the robot: daemons {restarts} -> {[s['main_pid'] for s in statuses.values()]}")
