@@ -97,7 +97,7 @@ def test_refresh_moves_every_map_its_image_and_bag_and_keeps_the_chosen_map_curr
     system.snapsim("install", REPO, "--dangerous")  # the refresh
 
     maps = system.root / MAP_FOLDER
-    assert not old.exists()
+    assert old.is_symlink() and old.resolve() == maps.resolve()  # a reverted revision still finds them
     assert contents(maps) == images_and_bags
     assert {name: map_files.load_map(maps / f"{name}.yaml") for name in names} == maps_before
     for name in names:
@@ -118,7 +118,7 @@ def test_refresh_while_mapping_runs_keeps_the_session_map_and_moves_it(system):
     system.snapsim("install", REPO, "--dangerous")  # stops mapping (the old revision saves), then migrates
 
     maps = system.root / MAP_FOLDER
-    assert not (system.root / OLD_FOLDER).exists()
+    assert (system.root / OLD_FOLDER).resolve() == maps.resolve()
     [saved] = [path.name for path in maps.glob("*.yaml") if path.name != "current_map.yaml"]
     assert os.readlink(maps / "current_map.yaml") == saved and system.config("turtlebot3c")["map"] == "latest"
     assert map_files.load_map(maps / saved).data.shape == (3, 4)
@@ -127,6 +127,27 @@ def test_refresh_while_mapping_runs_keeps_the_session_map_and_moves_it(system):
     system.snapsim("stop", "turtlebot3c.mapping")
     assert len([path for path in maps.glob("*.yaml") if path.name != "current_map.yaml"]) == 2
     assert os.readlink(maps / "current_map.yaml") != saved
+
+
+def test_a_refresh_undone_after_the_move_leaves_the_earlier_revision_every_map(system, tmp_path):
+    old = system.root / OLD_FOLDER
+    names = [save_with_old_revision(system, old, side, bag=True) for side in (4, 6)]
+    failing = tmp_path / "failing-revision"
+    shutil.copytree(REPO / "snap", failing / "snap")
+    with open(failing / "snap" / "hooks" / "post-refresh", "a") as hook:
+        hook.write('echo "post-refresh: failing on purpose" >&2\nexit 1\n')
+
+    done = system.snapsim("install", failing, "--dangerous", check=False)
+
+    assert done.returncode == 1 and "failing on purpose" in done.stderr
+    assert os.readlink(system.root / "snap" / "turtlebot3c" / "current") == "x1"  # snapd undid the refresh
+    system.wait_state("turtlebot3c", "teleop", ["active"])
+    # the earlier revision reads root's old folder, now a link to the new one: every map is there
+    assert os.readlink(old / "current_map.yaml") == f"{names[1]}.yaml"
+    assert sorted(path.name for path in old.iterdir() if path.suffix in (".yaml", ".pgm", ".bag")) == sorted(
+        [f"{name}{suffix}" for name in names for suffix in (".yaml", ".pgm", ".bag")] + ["current_map.yaml"])
+    listed = shell(system, 'ls "$SNAP_USER_COMMON/map/"').stdout
+    assert f"{names[0]}.yaml" in listed and f"{names[1]}.pgm" in listed
 
 
 # --- migrate_maps.sh itself: interrupted anywhere, run again, nothing lost --------------------
@@ -189,7 +210,8 @@ def test_a_migration_cut_at_any_step_loses_nothing_and_the_next_run_finishes_it(
                 assert (case / "new" / f"{yaml.stem}.pgm").exists(), (kill_at, yaml.name)
         finished = migrate(old, case / "new")
         assert finished.returncode == 0, finished.stderr
-        assert not old.exists() and snapshot(case / "new") == reference, kill_at
+        assert old.is_symlink() and old.resolve() == (case / "new").resolve(), kill_at
+        assert snapshot(case / "new") == reference and not (case / "old.moved").exists(), kill_at
         if cut.returncode == 0:
             break  # this run was never cut: every step has been cut once
         kill_at += 1

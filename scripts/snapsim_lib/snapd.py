@@ -115,11 +115,32 @@ def _refresh(layout, name, info, existing, revision):
                 snap_state["services"][app] = {"enabled": info["apps"][app].get("install-mode") != "disable"}
         for plug in _plugs(info):
             snap_state["connections"].setdefault(plug, plug in AUTO_CONNECT)
-    hooks.run_hook(layout, name, "post-refresh")
-    for app in services.daemons(info):
+    try:
+        hooks.run_hook(layout, name, "post-refresh")
+        for app in services.daemons(info):
+            if services.is_enabled(layout, name, app) or app in was_active:
+                services.start(layout, name, app)
+        hooks.run_hook(layout, name, "configure")
+    except BaseException:
+        _undo_refresh(layout, name, info, old_info, old, revision, was_active)
+        raise
+
+
+def _undo_refresh(layout, name, info, old_info, old, revision, was_active):
+    """A failed post-refresh or configure hook: back to the old revision, as snapd undoes the change."""
+    _stop_all(layout, name, info)
+    _point_current(layout, name, old)
+    for home in layout.all_homes():
+        if (home / "snap" / name / old).is_dir():
+            _relink(home / "snap" / name / "current", old)
+        shutil.rmtree(home / "snap" / name / revision, ignore_errors=True)
+    with state_module.locked(layout) as current:
+        current["snaps"][name]["revision"] = old
+    shutil.rmtree(layout.snap_data(name, revision), ignore_errors=True)
+    shutil.rmtree(layout.snap_mount(name, revision), ignore_errors=True)
+    for app in services.daemons(old_info):
         if services.is_enabled(layout, name, app) or app in was_active:
             services.start(layout, name, app)
-    hooks.run_hook(layout, name, "configure")
 
 
 def remove(layout, name, purge=False):

@@ -11,13 +11,22 @@
 # them a map; current_map.yaml is set in the new folder before anything leaves
 # the old one, and a file is deleted there only when its twin is in place. A
 # name taken in the new folder by a different file is never overwritten: that
-# map stays in the old folder, with a message.
+# map stays in the old folder, with a message. Once the old folder is empty it
+# becomes a link to the new one, so a reverted (earlier) revision still finds
+# every map, and saves new ones in the new folder.
 set -eu
 
 old_dir="$1"
 new_dir="$2"
 
-if [ ! -d "$old_dir" ]; then
+old_link="$old_dir.moved" # the link that replaces the old folder, made before the folder goes
+if [ -L "$old_dir" ]; then
+  exit 0 # migrated already
+fi
+if [ ! -e "$old_dir" ]; then
+  if [ -L "$old_link" ]; then
+    mv -T -- "$old_link" "$old_dir" # cut between removing the old folder and linking it
+  fi
   exit 0
 fi
 mkdir -p "$new_dir"
@@ -138,9 +147,12 @@ fi
 # Left by saves that were killed midway: never a complete map.
 rm -rf -- "$old_dir"/.saving.* "$old_dir/.current_map.yaml.tmp"
 
+ln -sfn -- "$new_dir" "$old_link"
 if rmdir -- "$old_dir" 2>/dev/null; then
-  say "the maps moved from $old_dir to $new_dir"
+  mv -T -- "$old_link" "$old_dir"
+  say "the maps moved from $old_dir to $new_dir (the old folder is now a link to it)"
 else
+  rm -f -- "$old_link"
   say "the maps moved from $old_dir to $new_dir; what could not move stays in $old_dir:" \
     "$(find "$old_dir" -mindepth 1 -maxdepth 1 -printf '%f ')" >&2
 fi
