@@ -225,7 +225,8 @@ def test_an_unknown_map_is_rejected_listing_the_known_ones_and_nothing_changes(s
     assert system.config("turtlebot3c") == before and current(maps) == "hall.yaml"
 
 
-@pytest.mark.parametrize("value", ["../kitchen", "current_map", "new_map", ".hidden", "$(touch {marker})"])
+@pytest.mark.parametrize("value", ["../kitchen", "current_map", "new_map", ".hidden", "-kitchen", "kit chen",
+                                   "$(touch {marker})", "`touch {marker}`"])
 def test_a_map_value_that_is_no_map_name_is_rejected_and_runs_nothing(system, maps, tmp_path, value):
     marker = tmp_path / "pwned"
     add_map(maps, "kitchen")

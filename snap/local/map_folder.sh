@@ -46,7 +46,7 @@ current_map() {
 
 # Make NAME the current map in one rename(2), so the link is never missing or half-written.
 make_current() {
-  ln -sfn "$1.yaml" "$maps_dir/.current_map.yaml.tmp"
-  mv -fT "$maps_dir/.current_map.yaml.tmp" "$maps_dir/current_map.yaml"
-  sync "$maps_dir"
+  ln -sfn -- "$1.yaml" "$maps_dir/.current_map.yaml.tmp"
+  mv -fT -- "$maps_dir/.current_map.yaml.tmp" "$maps_dir/current_map.yaml"
+  sync -- "$maps_dir"
 }
