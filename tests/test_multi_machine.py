@@ -50,15 +50,23 @@ def create_hosts():
         f"{host.address} {host.hostname} {host.hostname}.local\n" for host in (robot, remote))
     ends = {robot: f"tb3r{SUFFIX}", remote: f"tb3m{SUFFIX}"}
     ip("link", "add", ends[robot], "type", "veth", "peer", "name", ends[remote])
-    for host in (robot, remote):
-        ip("netns", "add", host.namespace)
-        ip("link", "set", ends[host], "netns", host.namespace)
-        ip("-n", host.namespace, "addr", "add", f"{host.address}/24", "dev", ends[host])
-        ip("-n", host.namespace, "link", "set", ends[host], "up")
-        ip("-n", host.namespace, "link", "set", "lo", "up")
-        etc = Path("/etc/netns") / host.namespace
-        etc.mkdir(parents=True, exist_ok=True)
-        (etc / "hosts").write_text(hosts_file)
+    try:
+        for host in (robot, remote):
+            ip("netns", "add", host.namespace)
+            ip("link", "set", ends[host], "netns", host.namespace)
+            ip("-n", host.namespace, "addr", "add", f"{host.address}/24", "dev", ends[host])
+            ip("-n", host.namespace, "link", "set", ends[host], "up")
+            ip("-n", host.namespace, "link", "set", "lo", "up")
+            etc = Path("/etc/netns") / host.namespace
+            etc.mkdir(parents=True, exist_ok=True)
+            (etc / "hosts").write_text(hosts_file)
+    except subprocess.CalledProcessError:
+        # A half-made pair must not outlive the test: an end left in the
+        # machine's own namespace would block the next run's pair of that name.
+        for end in ends.values():
+            subprocess.run(["ip", "link", "del", end], capture_output=True)
+        remove_hosts((robot, remote))
+        raise
     return robot, remote
 
 
