@@ -128,9 +128,12 @@ def serve(probe, requests, replies):
 
 
 def main():
-    rospy.init_node("test_probe", anonymous=True, disable_signals=True)
+    # The reply channel is the real stdout, kept aside before rospy starts: rospy
+    # prints to stdout (e.g. "Unable to immediately register with master node"
+    # while a master restarts), which would corrupt the replies.
     replies = sys.stdout
-    sys.stdout = sys.stderr  # keep rospy's prints out of the reply channel
+    sys.stdout = sys.stderr
+    rospy.init_node("test_probe", anonymous=True, disable_signals=True)
     replies.write(json.dumps({"ok": True, "ready": True}) + "\n")
     replies.flush()
     serve(Probe(), sys.stdin, replies)
