@@ -5,11 +5,11 @@ import tty
 import pytest
 
 from ros_harness import wait_until
+from turtlebot3c_bringup.backoff import Backoff
 from turtlebot3c_teleop.joystick_device import (
     JS_EVENT_AXIS,
     JS_EVENT_BUTTON,
     JS_EVENT_INIT,
-    Backoff,
     JoystickState,
     JsEvent,
     encode_event,

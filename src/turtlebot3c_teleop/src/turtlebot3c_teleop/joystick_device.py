@@ -84,22 +84,3 @@ def _set_growing(values: list, index: int, value, fill) -> bool:
     changed = grown or values[index] != value
     values[index] = value
     return changed
-
-
-class Backoff:
-    """Delays between attempts to reopen a device: doubling from `initial` up to `maximum`."""
-
-    def __init__(self, initial: float = 0.25, maximum: float = 2.0):
-        if not 0 < initial <= maximum:
-            raise ValueError(f"need 0 < initial <= maximum, got {initial}, {maximum}")
-        self.initial = initial
-        self.maximum = maximum
-        self._next = initial
-
-    def next_delay(self) -> float:
-        delay = self._next
-        self._next = min(self.maximum, self._next * 2.0)
-        return delay
-
-    def reset(self) -> None:
-        self._next = self.initial
