@@ -19,7 +19,9 @@ from turtlebot3c_bringup.wheel_odometry import Snapshot, WheelOdometry
 from turtlebot3c_description.models import RobotModel
 
 HEARTBEAT_PERIOD = 0.1  # s; the firmware stops the motors after 0.5 s without a heartbeat change
-COMMAND_TIMEOUT = 0.5  # s of /cmd_vel silence before the driver commands zero velocity
+# s of /cmd_vel silence before the driver commands zero velocity: as short as the teleop watchdog's, so a dead
+# teleop daemon (or anything that stops /cmd_vel) stops the robot as fast as a dead velocity source does
+COMMAND_TIMEOUT = 0.3
 MAX_CONSECUTIVE_FAILURES = 10  # failed reads in a row that mean the link is gone, not just noisy
 
 
