@@ -2,6 +2,7 @@
 import math
 import random
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -166,14 +167,51 @@ class _Message:
 
 def test_laser_scan_geometry_is_the_upstream_one():
     scan = fill_scan(_Message(), [1.0] * 360, [0.0] * 360, stamp=12.5, frame_id="base_scan",
-                     range_min=0.12, range_max=3.5, rpm=300.0)
-    assert scan.header.frame_id == "base_scan"
+                     range_min=0.12, range_max=3.5, time_increment=-0.2 / 360, scan_time=0.2)
+    assert scan.header.frame_id == "base_scan" and scan.header.stamp == 12.5
     assert scan.angle_min == 0.0
     assert scan.angle_increment == 2 * math.pi / 360
     assert scan.angle_max == 2 * math.pi - scan.angle_increment
     assert (scan.range_min, scan.range_max) == (0.12, 3.5)
-    assert scan.time_increment == 1 / (300 * 6)
+    assert scan.time_increment == -0.2 / 360
     assert scan.scan_time == 0.2
+
+
+# --- scan timing: beam i measured at stamp + i * time_increment -------------------------------
+
+def test_lds01_scan_is_stamped_when_beam_0_was_measured_and_counts_time_backwards():
+    # Beam 0 is the last reading of packet 59; the revolution is known complete when the next
+    # packet's header arrives, one packet (1/300 s at 300 rpm) later.
+    data = lds01_revolution() + lds01_revolution()[:2]
+    [scan] = Lds01().feed(data, read_time=100.0)
+    assert scan.scan_time == pytest.approx(0.2)
+    assert scan.time_increment == pytest.approx(-0.2 / 360)
+    assert scan.stamp == pytest.approx(100.0 - 0.2 / 60)
+    # beam 359 (the first reading of packet 0) comes out 359 beams before beam 0, at the revolution's start
+    assert scan.stamp + 359 * scan.time_increment == pytest.approx(100.0 - 0.2 / 60 - 0.2, abs=0.2 / 60)
+
+
+def test_lds01_scan_read_from_a_backlog_is_stamped_when_its_bytes_came_not_when_they_were_read():
+    # Two revolutions read at once: the first ended a whole revolution (2520 bytes at 12600 B/s) earlier.
+    data = lds01_revolution() * 2 + lds01_revolution()[:2]
+    first, second = Lds01().feed(data, read_time=50.0)
+    assert second.stamp - first.stamp == pytest.approx(0.2, abs=0.005)
+    assert second.stamp == pytest.approx(50.0 - 0.2 / 60)
+
+
+def test_lds02_scan_is_stamped_at_the_end_of_its_revolution_and_counts_time_backwards():
+    # 3600 deg/s: 10 revolutions a second; the stream's last revolution stays open.
+    [scan] = Lds02().feed(lds02_stream(2), read_time=20.0)
+    assert scan.scan_time == pytest.approx(0.1)
+    assert scan.time_increment == pytest.approx(-0.1 / 360)
+    # read at 20.0 with a few packets of the open revolution after it: the stamp is earlier by their time
+    assert 20.0 - 0.1 < scan.stamp < 20.0
+
+
+def test_unknown_motor_speed_gives_no_beam_timing():
+    packets = [lds01_protocol.encode_packet(index, 0, [(100, 1000)] * 6) for index in range(60)]
+    [scan] = Lds01().feed(b"".join(packets) + packets[0][:2], read_time=7.0)
+    assert (scan.time_increment, scan.scan_time, scan.stamp) == (0.0, 0.0, 7.0)
 
 
 def test_unknown_lidar_model_names_the_known_ones():
