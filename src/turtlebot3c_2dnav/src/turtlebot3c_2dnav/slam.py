@@ -3,7 +3,7 @@
 Use::
 
     slam = Slam(SlamConfig())                      # or SlamConfig.from_dict({...})
-    pose = slam.add_scan(stamp, ranges, geometry, odom_pose)   # per LaserScan
+    pose = slam.add_scan(stamp, ranges, geometry, odom_pose)   # per LaserScan (+ motion: scan_deskew)
     slam.map_to_odom                               # (x, y, yaw) for the map -> odom transform
     slam.occupancy_map()                           # map_files.OccupancyMap (100 / 0 / -1)
     slam.trajectory()                              # [(stamp, x, y, yaw)] per scan, after loop closures
@@ -158,9 +158,13 @@ class Slam:
 
     # --- per scan -------------------------------------------------------------------------
 
-    def add_scan(self, stamp, ranges, geometry, odom_pose):
-        """Process one scan with the odometry pose (odom frame) of the robot at its time; returns the map pose."""
-        rays = scan_rays(geometry, ranges, self.config.usable_range)
+    def add_scan(self, stamp, ranges, geometry, odom_pose, motion=None):
+        """Process one scan with the odometry pose (odom frame) of the robot at its time; returns the map pose.
+
+        A scan measured over time comes with `motion` (scan_deskew.beam_motion), and `stamp` and
+        `odom_pose` are then those of its reference time (scan_deskew.reference_time).
+        """
+        rays = scan_rays(geometry, ranges, self.config.usable_range, motion)
         points = self._matching_points(rays.hits)
         odom_pose = tuple(float(v) for v in odom_pose)
         if not self.keyframes:

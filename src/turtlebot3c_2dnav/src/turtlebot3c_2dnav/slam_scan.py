@@ -13,6 +13,8 @@ import math
 
 import numpy as np
 
+from .scan_deskew import deskew_points
+
 
 class ScanGeometry:
     """The fixed part of a LaserScan plus where the LIDAR sits on the robot.
@@ -60,8 +62,14 @@ class ScanRays:
         self.free_ends = free_ends  # (M, 2) endpoints of rays that saw nothing up to there
 
 
-def scan_rays(geometry, ranges, usable_range):
-    """Classify `ranges` (sequence of float) and return the rays in the robot frame."""
+def scan_rays(geometry, ranges, usable_range, motion=None):
+    """Classify `ranges` (sequence of float) and return the rays in the robot frame.
+
+    `motion` (count, 3), from scan_deskew.beam_motion, is where the robot was at each beam's time
+    relative to where it is at the scan's reference time: end points are deskewed to that time.
+    Rays are still traced from the sensor's one origin: it moves a few centimetres in a scan at
+    most, which shifts free cells, not the end points that make walls.
+    """
     ranges = np.asarray(ranges, dtype=np.float64)
     if ranges.shape != (geometry.count,):
         raise ValueError(f"scan has {ranges.size} ranges, its geometry {geometry.count}")
@@ -72,6 +80,11 @@ def scan_rays(geometry, ranges, usable_range):
     free = valid & ~hit
     hit_points = geometry.origin + geometry.directions[hit] * ranges[hit, None]
     free_points = geometry.origin + geometry.directions[free] * limit if math.isfinite(limit) else np.empty((0, 2))
+    if motion is not None:
+        motion = np.asarray(motion, dtype=np.float64)
+        hit_points = deskew_points(hit_points, motion[hit])
+        if len(free_points):
+            free_points = deskew_points(free_points, motion[free])
     return ScanRays(geometry, hit_points, free_points)
 
 
