@@ -7,20 +7,17 @@ import math
 import os
 import re
 import subprocess
-import sys
 
 import numpy as np
 import pytest
+from e2e import evaluation, explorer
+from e2e.pictures import MapPicture
 from PIL import Image
 
 import ros_harness
 from turtlebot3c_description.models import get_model
 from turtlebot3c_sim.simulation import NoiseConfig, Simulation
 from turtlebot3c_sim.world import load_world
-
-sys.path.insert(0, str(ros_harness.REPO / "scripts"))
-from e2e import evaluation, explorer  # noqa: E402
-from e2e.pictures import MapPicture  # noqa: E402
 
 DEMO = ros_harness.REPO / "scripts" / "demo"
 DATED_MAP = re.compile(r"^\d{4}-\d{2}-\d{2}_\d{2}-\d{2}-\d{2}(_\d+)?\.yaml$")

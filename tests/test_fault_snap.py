@@ -15,8 +15,9 @@ import time
 import pytest
 import yaml
 from real_robot import node_pid
+from snapsim_lib.supervisor import root_processes
 from test_snap_maps import dated_maps, saved_map, shell
-from test_snap_support import MAP_FOLDER, REPO, SNAPSIM, install_turtlebot3c, main_command_line, processes_of
+from test_snap_support import MAP_FOLDER, REPO, SNAPSIM, install_turtlebot3c, main_command_line
 
 from ros_harness import descendants, kill_quietly, wait_until
 from turtlebot3c_2dnav.map_files import load_map
@@ -78,7 +79,7 @@ def test_stopping_mapping_with_a_large_map_saves_it_within_the_stop_timeout(syst
 
 def map_saver_running(system):
     """The map_saver node itself (a Python process), not rosrun's shell or its `find` on the way."""
-    for pid in processes_of(system.root):
+    for pid in root_processes(system.root):
         try:
             words = open(f"/proc/{pid}/cmdline", "rb").read().split(b"\0")
         except OSError:
@@ -167,5 +168,5 @@ def test_a_sigkilled_daemon_is_restarted_by_the_snaps_restart_policy(system, ros
                lambda: f"{app} was not restarted: {system.status('turtlebot3c', app)}\n{system.logs('turtlebot3c')}")
     system.wait_state("turtlebot3c", app, ["active"])
     wait_until(lambda: node_pid(ros_master, node) not in (None, node_before), 60, f"{node} did not come back")
-    assert before not in processes_of(system.root)
+    assert before not in root_processes(system.root)
     assert not os.path.exists(f"/proc/{node_before}") or b"Z" in open(f"/proc/{node_before}/stat", "rb").read()

@@ -6,13 +6,12 @@ from pathlib import Path
 
 import pytest
 import yaml
+from snapsim_lib import lint, prime
 from test_snap_support import install_space_with_standins
 
 import ros_harness
 
 REPO = ros_harness.REPO
-sys.path.insert(0, str(REPO / "scripts"))
-from snapsim_lib import lint, prime  # noqa: E402
 
 SNAPCRAFT_YAML = REPO / "snap" / "snapcraft.yaml"
 

@@ -2,12 +2,12 @@
 import os
 
 import pytest
+from snapsim_lib.supervisor import root_processes
 from test_snap_support import (
     MAP_FOLDER,
     install_turtlebot3c,
     main_command_line,
     mux_mark,
-    processes_of,
     selected_mux_input,
     user_environment,
 )
@@ -187,4 +187,4 @@ def test_remove_purge_leaves_nothing_of_the_snap_and_no_process(system, maps):
     system.snapsim("run", "--shell", "turtlebot3c.mapping", "-c", "install_last_map.sh")
     system.snapsim("remove", "--purge", "turtlebot3c")
     assert [path for path in system.root.rglob("*") if "turtlebot3c" in path.name] == []
-    assert processes_of(system.root) == []
+    assert root_processes(system.root) == []

@@ -14,6 +14,8 @@ import subprocess
 import time
 from pathlib import Path
 
+from snapsim_lib.supervisor import root_processes
+
 import ros_harness
 from ros_harness import wait_until
 
@@ -150,28 +152,8 @@ class SnapSystem:
         if state_file.exists():
             for snap in json.loads(state_file.read_text())["snaps"]:
                 self.snapsim("remove", "--purge", snap, check=False)
-        for pid in processes_of(self.root):
+        for pid in root_processes(self.root):
             ros_harness.kill_quietly(pid, signal.SIGKILL)
-
-
-def processes_of(root):
-    """Processes started for this snapsim root: services (by their cgroup marker) and supervisors."""
-    found = []
-    marker = f"@{Path(root).resolve()}".encode()
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit() or int(entry.name) == os.getpid():
-            continue
-        try:
-            environ = (entry / "environ").read_bytes()
-            cmdline = (entry / "cmdline").read_bytes()
-            state = (entry / "stat").read_text().rsplit(")", 1)[1].split()[0]
-        except OSError:
-            continue
-        in_cgroup = any(item.startswith(b"SNAPSIM_CGROUP=") and item.endswith(marker) for item in environ.split(b"\0"))
-        supervisor = b"_supervise" in cmdline and str(Path(root).resolve()).encode() in cmdline
-        if state != "Z" and (in_cgroup or supervisor):
-            found.append(int(entry.name))
-    return found
 
 
 def pid_alive(pid):

@@ -6,7 +6,8 @@ from pathlib import Path
 
 import pytest
 import yaml
-from test_snap_support import SNAPSIM, SnapSystem, make_demo_project, processes_of, trace, wait_for_file
+from snapsim_lib.supervisor import root_processes
+from test_snap_support import SNAPSIM, SnapSystem, make_demo_project, trace, wait_for_file
 
 from ros_harness import wait_until
 
@@ -74,10 +75,12 @@ def test_run_expands_command_arguments_and_drops_empty_ones(system, project):
 def test_remove_purge_leaves_nothing_of_the_snap(system, project):
     system.snapsim("install", project, "--dangerous")
     system.snapsim("start", "demo.stubborn")
+    running = system.wait_state("demo", "stubborn", ["active"])
+    assert {running["main_pid"], running["supervisor"]} <= set(root_processes(system.root))
     system.snapsim("remove", "--purge", "demo")
     leftovers = [path for path in system.root.rglob("*") if "demo" in path.name]
     assert leftovers == []
-    assert processes_of(system.root) == []
+    assert root_processes(system.root) == []
     assert system.snapsim("services").stdout.splitlines() == ["Service  Startup  Current  Notes"]
 
 
@@ -171,4 +174,4 @@ def test_install_whose_configure_hook_fails_is_undone(system, project):
     done = system.snapsim("install", project, "--dangerous", check=False)
     assert done.returncode == 1 and "color: 'purple' is not allowed" in done.stderr
     assert [path for path in system.root.rglob("*") if "demo" in path.name] == []
-    assert processes_of(system.root) == []
+    assert root_processes(system.root) == []

@@ -11,6 +11,8 @@ import subprocess
 import time
 from pathlib import Path
 
+from snapsim_lib.supervisor import root_processes
+
 SNAP = "turtlebot3c"
 REPO = Path(__file__).resolve().parent.parent.parent
 SNAPSIM = REPO / "scripts" / "snapsim"
@@ -96,7 +98,7 @@ class Snapsim(SnapCommandLine):
     def finish(self):
         """Remove the snap (its services stop) and make sure nothing of this root runs on."""
         self.run("remove", "--purge", SNAP, check=False)
-        for pid in processes_of_root(self.root):
+        for pid in root_processes(self.root):
             try:
                 os.kill(pid, signal.SIGKILL)
             except ProcessLookupError:
@@ -130,25 +132,6 @@ class RealSnap(SnapCommandLine):
         for app in SERVICES:
             self.run("stop", f"{SNAP}.{app}", check=False)
         self.run("stop", "--disable", f"{SNAP}.navigation", check=False)
-
-
-def processes_of_root(root):
-    """Processes a snapsim root started: its services (by their cgroup marker) and supervisors."""
-    found = []
-    root = str(Path(root).resolve())
-    marker = f"@{root}".encode()
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit() or int(entry.name) == os.getpid():
-            continue
-        try:
-            environ = (entry / "environ").read_bytes()
-            cmdline = (entry / "cmdline").read_bytes()
-        except OSError:
-            continue
-        in_cgroup = any(item.startswith(b"SNAPSIM_CGROUP=") and item.endswith(marker) for item in environ.split(b"\0"))
-        if in_cgroup or (b"_supervise" in cmdline and root.encode() in cmdline):
-            found.append(int(entry.name))
-    return found
 
 
 def wait_for(condition, timeout, what, interval=0.2):

@@ -59,16 +59,38 @@ def cgroup_marker(layout, snap, app):
 
 def cgroup_members(marker):
     entry = f"SNAPSIM_CGROUP={marker}".encode()
-    members = []
+    return [pid for pid, environ, _ in _live_processes() if entry in environ]
+
+
+def root_processes(root):
+    """Every process of the snapsim root `root`: its services' "cgroups" and their supervisors.
+
+    For whoever must leave nothing of a root running (the demo's clean-up, tests),
+    also after a supervisor was killed and its service's processes were orphaned.
+    """
+    root = str(Path(root).resolve()).encode()
+    marker_end = b"@" + root
+    found = []
+    for pid, environ, argv in _live_processes():
+        in_cgroup = any(item.startswith(b"SNAPSIM_CGROUP=") and item.endswith(marker_end) for item in environ)
+        supervisor = b"_supervise" in argv and root in argv
+        if in_cgroup or supervisor:
+            found.append(pid)
+    return found
+
+
+def _live_processes():
+    """(pid, environment entries, argv) of every process but this one and zombies, as bytes."""
     for proc in Path("/proc").iterdir():
         if not proc.name.isdigit() or int(proc.name) == os.getpid():
             continue
         try:
-            if entry in (proc / "environ").read_bytes().split(b"\0") and not is_zombie(int(proc.name)):
-                members.append(int(proc.name))
+            environ = (proc / "environ").read_bytes().split(b"\0")
+            argv = (proc / "cmdline").read_bytes().split(b"\0")
         except OSError:
             continue
-    return members
+        if not is_zombie(int(proc.name)):
+            yield int(proc.name), environ, argv
 
 
 def is_zombie(pid):
