@@ -37,8 +37,8 @@ def parse_args(argv):
     parser.add_argument("--world", default="turtlebot3_world", choices=sorted(explorer.TOURS))
     parser.add_argument("--speed", type=float, default=0.18, help="the explorer's top speed, m/s (default 0.18)")
     parser.add_argument("--turn-rate", type=float,
-                        help="the explorer's top turn rate, rad/s (default 0.8; 0.3 with --real-robot, where "
-                             "a LIDAR revolution takes 0.2 s and fast turns skew the scans)")
+                        help="the explorer's top turn rate, rad/s (default 0.8; on the real-robot path too: "
+                             "SLAM, AMCL and the costmaps deskew the LIDAR's 0.2 s revolutions)")
     parser.add_argument("--snap-cli", default="snapsim", choices=("snapsim", "snap"),
                         help="snapsim (a private root, default) or the real snap (as root, with --snap-file)")
     parser.add_argument("--snap-file", help="the .snap to install with --snap-cli snap")
@@ -186,7 +186,7 @@ class Demo:
         start = self.link.true_pose()
         legs = explorer.plan_tour(self.world, start[:2], steps, model.robot_radius)
         max_linear = min(options.speed, model.max_linear_velocity)
-        turn_rate = options.turn_rate or (0.3 if options.real_robot else 0.8)
+        turn_rate = options.turn_rate or 0.8
         max_angular = min(turn_rate, model.max_angular_velocity)
         self.slam_path = []
         self.link.start_recording()

@@ -4,7 +4,8 @@ Reads the bag with `rosbags` (no ROS installation needed). Inputs, as the live n
 - scans: sensor_msgs/LaserScan on `scan_topic`;
 - odometry at each scan's time: the odom -> base transforms on /tf when the bag has them (what the
   live node looks up), else the nav_msgs/Odometry on `odom_topic`; interpolated like tf
-  (linear position, shortest-way yaw) between the two messages around the scan;
+  (linear position, shortest-way yaw) between the two messages around the scan; a scan with a
+  time_increment is deskewed (scan_deskew) with that odometry over its revolution;
 - the LIDAR mount: the base -> scan frame chain from /tf_static (or /tf), or one given.
 Scans outside the odometry's time span are skipped and counted.
 """
@@ -14,6 +15,7 @@ import time
 
 import numpy as np
 
+from .scan_deskew import beam_motion, reference_time
 from .slam import Slam
 from .slam_messages import (
     ScanGeometries,
@@ -202,12 +204,17 @@ def replay(inputs, config, base_frame="base_footprint", odometry_source="auto", 
             if mounts[frame] is None:
                 raise BagError(f"bag has no transform from {base_frame} to the scan frame {frame} on /tf_static "
                                "or /tf; give the mount (--scan-mount X,Y,YAW)")
-        odometry = series.at(stamp)
-        if odometry is None:
+        # As the live node: a scan measured over a revolution is deskewed to its latest beam.
+        count, increment = len(scan.ranges), scan.time_increment
+        reference = reference_time(stamp, count, increment)
+        first_beam = min(stamp, stamp + (count - 1) * increment)
+        odometry = series.at(reference)
+        if odometry is None or series.at(first_beam) is None:
             skipped += 1
             continue
-        slam.add_scan(stamp, np.asarray(scan.ranges, dtype=np.float64), geometries.get(scan, mounts[frame]),
-                      odometry)
+        motion = beam_motion(stamp, count, increment, series.at)
+        slam.add_scan(reference, np.asarray(scan.ranges, dtype=np.float64), geometries.get(scan, mounts[frame]),
+                      odometry, motion)
         processed += 1
     return ReplayResult(slam, processed, skipped, time.process_time() - started, inputs.duration, source)
 
