@@ -12,8 +12,9 @@ import time
 
 import pytest
 from real_robot import latest_odometry, node_pid, start_robot
+from roscore_restart import restart_roscore
 
-from ros_harness import descendants, kill_quietly, wait_until
+from ros_harness import wait_until
 from turtlebot3c_sim.fake_robot import send_command
 
 ODOMETRY = "nav_msgs/Odometry"
@@ -27,6 +28,7 @@ LOAD_MARGIN = 0.3  # s a loaded test machine may add to any of these
 SOAK_SECONDS = 20  # per fault rate here; scripts/bench_faults soaks for minutes
 CHAIN_NODES = ("/turtlebot3_core", "/mux", "/velocity_watchdog")
 DAEMON_NODES = ("/robot_state_publisher", "/turtlebot3_core", "/turtlebot3_lds", "/mux", "/velocity_watchdog")
+REJOINING_NODES = ("/turtlebot3_core", "/turtlebot3_lds", "/velocity_watchdog")  # rospy: in process
 
 
 @pytest.fixture(scope="module")
@@ -200,25 +202,15 @@ def test_a_sigkilled_node_is_respawned_and_the_robot_stops_meanwhile(robot, name
     assert node_pid(master, "/turtlebot3_core") and node_pid(master, "/velocity_watchdog")
 
 
-def restart_master(master):
-    """SIGKILL the roscore (master and rosout) and start a new one on the same port."""
-    master.probe.close()
-    master._probe = None
-    for pid in [master.core.pid] + descendants(master.core.pid):  # roslaunch put rosmaster in its own session
-        kill_quietly(pid, signal.SIGKILL)
-    master.core.wait(10)
-    wait_until(lambda: not master.is_up(), 10, "the old master still answers")
-    master.core = master.start(["roscore", "-p", str(master.port)], name="roscore-restarted")
-    wait_until(master.is_up, 30, "the restarted roscore did not come up")
-
-
 def test_a_restarted_roscore_gets_every_node_and_parameter_back_without_restarting_the_launch(robot):
     master, control = robot
     launches = [process for process in master.processes if process.name.startswith("roslaunch-")]
     before = latest_odometry(master.probe)["position"]
-    restart_master(master)
+    rejoining = {name: node_pid(master, name) for name in REJOINING_NODES}
+    restart_roscore(master)
     for name in DAEMON_NODES + ("/bringup_master_guard", "/teleop_master_guard"):
         master.wait_for_node(name, timeout=60)
+    assert {name: node_pid(master, name) for name in REJOINING_NODES} == rejoining, "a rospy node was restarted"
     assert "turtlebot3_burger" in master.param("/robot_description")
     assert master.param("/mux/initial_topic") == "nav_vel"
     probe = master.probe  # a new probe, registered with the new master
