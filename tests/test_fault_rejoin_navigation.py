@@ -1,0 +1,116 @@
+"""A roscore killed and restarted while navigating: map_server, amcl and move_base register again in process.
+
+The simulator, the robot model (bringup simulation:=true), the teleop mux and the navigation
+launch run on a map of turtlebot3_world; the roscore is SIGKILLed and a new one started on the
+same port. New subscribers and action clients must find the same navigation processes, amcl
+must still know where the robot is, and a goal sent after the restart must be reached (through
+the mux, which the teleop guard restarted).
+"""
+import math
+import time
+
+import numpy as np
+import pytest
+from real_robot import node_pid
+from roscore_restart import restart_roscore
+
+from ros_harness import wait_until
+from turtlebot3c_2dnav.map_files import OccupancyMap, save_map
+from turtlebot3c_2dnav.navigation_loop import world_layers
+from turtlebot3c_sim.world import load_world
+
+RESULT = "move_base_msgs/MoveBaseActionResult"
+POSE = "geometry_msgs/PoseWithCovarianceStamped"
+SUCCEEDED = 3
+SPAWN = (-2.0, -0.5, 0.0)
+NAVIGATION_NODES = ("/map_server", "/amcl", "/move_base")
+GOAL_ACROSS = (-0.55, -0.55, math.pi / 2)  # sent before the restart, reached after it
+GOAL_AFTER = (-1.8, -0.5, math.pi)
+
+
+def world_map(folder):
+    layers = world_layers(load_world("turtlebot3_world"))
+    folder.mkdir(parents=True, exist_ok=True)
+    yaml_path, _ = save_map(OccupancyMap(np.where(layers.occupied, 100, 0), layers.info.resolution,
+                                         (layers.info.origin_x, layers.info.origin_y, 0)), folder / "current_map")
+    return yaml_path
+
+
+def pose_stamped(x, y, yaw):
+    return {"header": {"frame_id": "map"},
+            "pose": {"position": {"x": x, "y": y}, "orientation": {"z": math.sin(yaw / 2), "w": math.cos(yaw / 2)}}}
+
+
+def true_position(probe):
+    position = probe.wait_for_message("/sim/ground_truth", "nav_msgs/Odometry", timeout=30)["pose"]["pose"]["position"]
+    return position["x"], position["y"]
+
+
+@pytest.fixture(scope="module")
+def navigation(ros_master):
+    """Navigation localised at the spawn pose, then the roscore restarted; the nodes' pids before it."""
+    map_file = world_map(ros_master.workdir / "map")
+    ros_master.launch("turtlebot3c_sim", "turtlebot3_world.launch", "model:=burger")
+    ros_master.launch("turtlebot3c_bringup", "turtlebot3c_bringup.launch", "simulation:=true", "model:=burger")
+    ros_master.launch("turtlebot3c_teleop", "turtlebot3c_teleop.launch")
+    ros_master.launch("turtlebot3c_2dnav", "turtlebot3c_navigation.launch", "model:=burger", f"map_file:={map_file}",
+                      f"initial_pose_x:={SPAWN[0]}", f"initial_pose_y:={SPAWN[1]}", f"initial_pose_a:={SPAWN[2]}")
+    for node in NAVIGATION_NODES + ("/mux", "/simulator"):
+        ros_master.wait_for_node(node, timeout=90)
+    probe = ros_master.probe
+    probe.wait_for_message("/amcl_pose", POSE, timeout=60, start=0)
+    pids = {name: node_pid(ros_master, name) for name in NAVIGATION_NODES}
+    send_goal(probe, "across-the-restart", GOAL_ACROSS)
+    wait_until(lambda: math.hypot(*np.subtract(true_position(probe), SPAWN[:2])) > 0.1, 60, "the robot never set off")
+    restarted = time.time()
+    restart_roscore(ros_master)
+    ros_master.probe.subscribe("/move_base/result", RESULT)  # from now: the goal's result may come any time
+    return {"master": ros_master, "pids": pids, "restarted": restarted}
+
+
+def send_goal(probe, name, pose):
+    probe.publish("/move_base/goal", "move_base_msgs/MoveBaseActionGoal",  # as an action client does
+                  {"goal_id": {"id": name}, "goal": {"target_pose": pose_stamped(*pose)}}, latch=True)
+
+
+def wait_for_result(probe, name, timeout=180):
+    result = probe.wait_for_message("/move_base/result", RESULT, timeout=timeout, start=0,
+                                    where=lambda result: result["status"]["goal_id"]["id"] == name)
+    return result["status"]["status"]
+
+
+def test_the_same_navigation_nodes_are_found_again_with_their_map_and_pose(navigation):
+    master = navigation["master"]
+    for node in NAVIGATION_NODES + ("/mux", "/simulator"):
+        master.wait_for_node(node, timeout=60)
+    assert {name: node_pid(master, name) for name in NAVIGATION_NODES} == navigation["pids"], "a node was restarted"
+    probe = master.probe
+    grid = probe.wait_for_message("/map", "nav_msgs/OccupancyGrid", timeout=30, start=0)  # latched by map_server
+    assert probe.call("/static_map", timeout=30)["map"]["info"]["width"] == grid["info"]["width"]
+    estimate = probe.wait_for_message("/amcl_pose", POSE, timeout=30, start=0)["pose"]["pose"]["position"]
+    assert math.hypot(estimate["x"] - SPAWN[0], estimate["y"] - SPAWN[1]) > 0.1  # from the drive before the restart
+    assert master.param("/amcl/initial_pose_x") == SPAWN[0]  # its private parameters are back
+    probe.wait_for_message("/move_base/status", "actionlib_msgs/GoalStatusArray", timeout=30)
+
+
+def test_the_goal_being_driven_to_across_the_restart_is_reached(navigation):
+    probe = navigation["master"].probe
+    assert wait_for_result(probe, "across-the-restart") == SUCCEEDED  # move_base kept it; the new mux passes it on
+    x, y = true_position(probe)
+    assert math.hypot(x - GOAL_ACROSS[0], y - GOAL_ACROSS[1]) < 0.1
+
+
+def test_a_goal_sent_after_the_restart_is_reached(navigation):
+    master = navigation["master"]
+    master.wait_for_node("/move_base", timeout=60)
+    probe = master.probe
+    wait_for_result(probe, "across-the-restart")
+    probe.subscribe("/amcl_pose", POSE)
+    send_goal(probe, "after-the-restart", GOAL_AFTER)
+    assert wait_for_result(probe, "after-the-restart") == SUCCEEDED
+    x, y = true_position(probe)
+    assert math.hypot(x - GOAL_AFTER[0], y - GOAL_AFTER[1]) < 0.1
+    latest = probe.messages("/amcl_pose")[-1]
+    assert latest["header"]["stamp"] > navigation["restarted"], "amcl took no scan after the restart"
+    position = latest["pose"]["pose"]["position"]
+    assert math.hypot(position["x"] - x, position["y"] - y) < 0.15  # and followed the robot
