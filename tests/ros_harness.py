@@ -17,6 +17,8 @@ import time
 import xmlrpc.client
 from pathlib import Path
 
+from waiting import wait_until
+
 REPO = Path(__file__).resolve().parent.parent
 BUILD = Path(os.environ.get("TURTLEBOT3C_BUILD_DIR", REPO / "build"))
 PRIME_ROS = BUILD / "prime" / "opt" / "ros" / "noetic"
@@ -24,26 +26,6 @@ SIM_SPACE = BUILD / "sim"
 VENV = Path(os.environ.get("TURTLEBOT3C_VENV", REPO / ".venv"))
 RUN_MARKER = "TURTLEBOT3C_TEST_RUN"
 RUN_ID = f"{os.getpid()}-{int(time.time() * 1000)}"
-
-
-class TimeoutExpired(AssertionError):
-    pass
-
-
-def wait_until(condition, timeout, message, interval=0.05):
-    """Poll `condition` until it returns a truthy value; fail with `message` after `timeout` s.
-
-    `message` may be a function, called only on failure to describe the state then.
-    """
-    deadline = time.monotonic() + timeout
-    while True:
-        value = condition()
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            text = message() if callable(message) else message
-            raise TimeoutExpired(f"{text} (waited {timeout:.1f} s)")
-        time.sleep(interval)
 
 
 def free_port():

@@ -15,8 +15,10 @@ import time
 import xmlrpc.client
 from pathlib import Path
 
+from waiting import wait_until
+
 from . import evaluation, explorer, processes, snap_control
-from .snap_control import SnapCommandError, wait_for
+from .snap_control import SnapCommandError
 
 MODELS = ("burger", "waffle", "waffle_pi")
 GOAL_TOLERANCE = 0.25  # m between the goal and where the robot truly stopped (localisation error included)
@@ -125,7 +127,7 @@ class Demo:
                                                                options.lds_model, self.logs / "fake_robot.log",
                                                                self.env)
             self.background.append(fake)
-            wait_for(lambda: opencr_link.exists() and lds_link.exists(), 60, "the fake robot's serial links")
+            wait_until(lambda: opencr_link.exists() and lds_link.exists(), 60, "the fake robot's serial links")
             values.update({"simulation": "false", "lds-model": options.lds_model,
                            "opencr-port": os.path.realpath(opencr_link), "lds-port": os.path.realpath(lds_link)})
             self.progress.done(f"opencr-port={values['opencr-port']} lds-port={values['lds-port']}")
@@ -143,10 +145,10 @@ class Demo:
         expected = ["/robot_state_publisher", "/mux", "/velocity_watchdog"]
         if options.real_robot:
             expected += ["/turtlebot3_core", "/turtlebot3_lds"]
-        wait_for(lambda: all(self.node_running(name) for name in expected), 180,
-                 lambda: f"nodes {expected}\n{self.snap.logs('40')}")
-        wait_for(self.link.true_pose, 60, "the simulator's ground truth")
-        wait_for(lambda: self.link.odometry_tf() is not None, 60, "tf odom -> base_footprint")
+        wait_until(lambda: all(self.node_running(name) for name in expected), 180,
+                   lambda: f"nodes {expected}\n{self.snap.logs('40')}")
+        wait_until(self.link.true_pose, 60, "the simulator's ground truth")
+        wait_until(lambda: self.link.odometry_tf() is not None, 60, "tf odom -> base_footprint")
         self.progress.done()
 
     def configure(self, values):
@@ -177,8 +179,8 @@ class Demo:
 
         self.progress.step("mapping-start", "snap start turtlebot3c.mapping")
         self.snap.start("mapping")
-        wait_for(self.link.map_pose, 180, lambda: f"SLAM's map -> base_footprint\n{self.snap.logs('40')}")
-        wait_for(lambda: self.link.has_key_vel_listener(), 30, "the mux listening on key_vel")
+        wait_until(self.link.map_pose, 180, lambda: f"SLAM's map -> base_footprint\n{self.snap.logs('40')}")
+        wait_until(lambda: self.link.has_key_vel_listener(), 30, "the mux listening on key_vel")
         self.map_in_world = self.locate_map_frame()
         self.progress.done("map frame at ({:.2f}, {:.2f}, {:.2f}) in the world".format(*self.map_in_world))
 
@@ -208,11 +210,11 @@ class Demo:
         # the last scans time to reach it, unless it was already up to date.
         driven_until = time.monotonic()
         try:
-            wait_for(lambda: self.link.map_updated_since(driven_until), 5, "a newer map")
+            wait_until(lambda: self.link.map_updated_since(driven_until), 5, "a newer map")
         except TimeoutError:
             pass
         self.truth_path = self.link.stop_recording()
-        self.final_slam_pose = wait_for(self.link.map_pose, 10, "SLAM's last pose")
+        self.final_slam_pose = wait_until(self.link.map_pose, 10, "SLAM's last pose")
         driven = evaluation.path_length([(x, y) for _, x, y, _ in self.truth_path])
         self.summary["driven_m"] = round(driven, 2)
         self.progress.done(f"{driven:.1f} m driven")
@@ -267,12 +269,12 @@ class Demo:
         self.progress.step("navigation-start", "snap start --enable turtlebot3c.navigation")
         self.snap.start("navigation", enable=True)
         client = self.link.move_base_client(timeout=180)
-        wait_for(self.link.initial_pose_listened, 60, "amcl listening on /initialpose")
+        wait_until(self.link.initial_pose_listened, 60, "amcl listening on /initialpose")
         # As a person would in RViz ("2D Pose Estimate"): where the robot stood when mapping ended.
         since = time.monotonic()
         self.link.set_initial_pose(self.final_slam_pose)
-        wait_for(lambda: self.link.amcl_settled(since, self.final_slam_pose, 0.2), 60,
-                 "AMCL's pose to settle at the initial pose")
+        wait_until(lambda: self.link.amcl_settled(since, self.final_slam_pose, 0.2), 60,
+                   "AMCL's pose to settle at the initial pose")
         self.progress.done("localised at ({:.2f}, {:.2f})".format(*self.final_slam_pose[:2]))
 
         world_to_map = evaluation.inverse(self.map_in_world)

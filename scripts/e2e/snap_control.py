@@ -8,7 +8,6 @@ import os
 import shutil
 import signal
 import subprocess
-import time
 from pathlib import Path
 
 from snapsim_lib.supervisor import root_processes
@@ -132,15 +131,3 @@ class RealSnap(SnapCommandLine):
         for app in SERVICES:
             self.run("stop", f"{SNAP}.{app}", check=False)
         self.run("stop", "--disable", f"{SNAP}.navigation", check=False)
-
-
-def wait_for(condition, timeout, what, interval=0.2):
-    """condition()'s first truthy value, or TimeoutError naming `what` (text, or a function giving it)."""
-    deadline = time.monotonic() + timeout
-    while True:
-        value = condition()
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            raise TimeoutError(f"{what() if callable(what) else what} (waited {timeout:.0f} s)")
-        time.sleep(interval)
