@@ -4,7 +4,7 @@ import math
 
 import pytest
 import yaml
-from test_nav_launch import RESULT, SPAWN, SUCCEEDED, pose_stamped, true_pose, write_world_map
+from nav_launch import RESULT, SUCCEEDED, launch_navigation, pose_stamped, true_pose
 
 from turtlebot3c_sim.world import find_world_file
 
@@ -13,20 +13,11 @@ BOX = {"type": "box", "center": [-1.1, -0.55], "size": [0.3, 0.3]}
 
 @pytest.fixture(scope="module")
 def navigation_with_a_new_box(ros_master):
-    map_file = write_world_map(ros_master.workdir / "map")  # the world as mapped, without the box
     description = yaml.safe_load(find_world_file("turtlebot3_world").read_text())
     description["obstacles"].append(BOX)
     world_file = ros_master.workdir / "world_with_box.yaml"
     world_file.write_text(yaml.safe_dump(description))
-    ros_master.launch("turtlebot3c_sim", "turtlebot3_world.launch", "model:=burger", f"world:={world_file}")
-    ros_master.launch("turtlebot3c_bringup", "turtlebot3c_bringup.launch", "simulation:=true", "model:=burger")
-    ros_master.launch("turtlebot3c_teleop", "turtlebot3c_teleop.launch")
-    ros_master.launch("turtlebot3c_2dnav", "turtlebot3c_navigation.launch", "model:=burger", f"map_file:={map_file}",
-                      f"initial_pose_x:={SPAWN[0]}", f"initial_pose_y:={SPAWN[1]}", f"initial_pose_a:={SPAWN[2]}")
-    for node in ("/map_server", "/amcl", "/move_base", "/mux", "/simulator"):
-        ros_master.wait_for_node(node, timeout=90)
-    ros_master.probe.wait_for_message("/amcl_pose", "geometry_msgs/PoseWithCovarianceStamped", timeout=60, start=0)
-    return ros_master
+    return launch_navigation(ros_master, world_file)  # the map is the world without the box
 
 
 def test_an_obstacle_missing_from_the_map_is_driven_around_without_collision(navigation_with_a_new_box):
