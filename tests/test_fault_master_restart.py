@@ -10,9 +10,11 @@ from turtlebot3c_bringup.master_restart import (
     KeptParameters,
     MasterQuery,
     MasterWatch,
+    NodeRegistrations,
     flat_parameters,
     master_identity,
     missing_parameters,
+    node_registrations,
 )
 
 
@@ -105,3 +107,19 @@ def test_a_master_that_answers_only_in_part_has_no_identity(fake_master):
 
 def test_no_master_at_the_address_has_no_identity():
     assert MasterQuery(f"http://127.0.0.1:{free_port()}", "/test", timeout=1.0).identity() is None
+
+
+def test_a_nodes_registrations_are_read_from_the_masters_system_state():
+    state = [
+        [["/rosout", ["/recorder", "/slam"]], ["/map", ["/slam"]]],
+        [["/scan", ["/recorder", "/slam"]], ["/tf_static", ["/recorder"]], ["/rosout", ["/rosout"]]],
+        [["/recorder/get_loggers", ["/recorder"]], ["/recorder/set_logger_level", ["/recorder"]],
+         ["/dynamic_map", ["/slam"]]],
+    ]
+    types = [["/rosout", "rosgraph_msgs/Log"], ["/map", "nav_msgs/OccupancyGrid"], ["/scan", "sensor_msgs/LaserScan"]]
+    service_uris = {"/recorder/get_loggers": "rosrpc://host:1"}  # the other one did not answer
+    assert node_registrations("/recorder", "http://host:2/", state, types, service_uris) == NodeRegistrations(
+        "http://host:2/", publications=[("/rosout", "rosgraph_msgs/Log")],
+        subscriptions=[("/scan", "sensor_msgs/LaserScan"), ("/tf_static", "*")],  # nobody publishes it yet
+        services=[("/recorder/get_loggers", "rosrpc://host:1")])
+    assert node_registrations("/absent", "http://host:3/", state, types, {}) == NodeRegistrations("http://host:3/")

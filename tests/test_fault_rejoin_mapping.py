@@ -4,7 +4,8 @@ The simulator, the robot model (bringup simulation:=true) and the mapping launch
 robot drives, the roscore is SIGKILLed and a new one started on the same port. The same SLAM
 process must be found by new subscribers with the map it had, take scans and odometry again
 (the map grows as the robot drives on), and the stop's save must still get the map; the
-session bag must hold the scans from both sides of the restart.
+session bag must hold the scans from both sides of the restart, and what publishers started
+since the restart sent (the mapping guard registered `rosbag record` with the new master).
 """
 import os
 import subprocess
@@ -100,8 +101,10 @@ def test_stopping_mapping_after_the_restart_saves_the_map_and_the_bag_holds_both
     bag = folder / "session.bag"
     wait_until(bag.exists, 30, lambda: f"no closed bag in {os.listdir(folder)}")
     with Reader(str(bag)) as reader:
-        stamps = [stamp * 1e-9 for connection, stamp, _ in reader.messages()
-                  if connection.topic == "/scan"]
+        stamps = {topic: [stamp * 1e-9 for connection, stamp, _ in reader.messages() if connection.topic == topic]
+                  for topic in ("/scan", "/tf_static")}
     restarted = mapping["restarted"]
-    assert sum(stamp < restarted for stamp in stamps) > 10
-    assert sum(stamp > restarted + 5.0 for stamp in stamps) > 10, "no scans recorded after the restart"
+    assert sum(stamp < restarted for stamp in stamps["/scan"]) > 10
+    assert sum(stamp > restarted + 5.0 for stamp in stamps["/scan"]) > 10, "no scans recorded after the restart"
+    # robot_state_publisher was restarted by its guard: the recorder found the new one through the new master
+    assert any(stamp > restarted for stamp in stamps["/tf_static"]), "the recorder missed a publisher started since"

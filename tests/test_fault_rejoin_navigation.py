@@ -48,7 +48,7 @@ def true_position(probe):
 
 @pytest.fixture(scope="module")
 def navigation(ros_master):
-    """Navigation localised at the spawn pose, then the roscore restarted; the nodes' pids before it."""
+    """Navigation localised at the spawn pose, driving to a goal when the roscore is restarted; the pids before."""
     map_file = world_map(ros_master.workdir / "map")
     ros_master.launch("turtlebot3c_sim", "turtlebot3_world.launch", "model:=burger")
     ros_master.launch("turtlebot3c_bringup", "turtlebot3c_bringup.launch", "simulation:=true", "model:=burger")

@@ -114,3 +114,39 @@ class KeptParameters:
     def missing(self, present: Iterable[str]) -> Dict[str, object]:
         """The kept leaves absent from the master's parameter names `present`."""
         return missing_parameters(self.leaves, present)
+
+
+class NodeRegistrations:
+    """What a node has registered with the master: its XML-RPC URI, publications and subscriptions
+    ((topic, type) pairs) and services ((name, rosrpc URI) pairs), to register again on its behalf."""
+
+    def __init__(self, uri: str, publications=(), subscriptions=(), services=()):
+        self.uri = uri
+        self.publications = list(publications)
+        self.subscriptions = list(subscriptions)
+        self.services = list(services)
+
+    def __eq__(self, other):
+        return isinstance(other, NodeRegistrations) and vars(self) == vars(other)
+
+    def __repr__(self):
+        return f"NodeRegistrations({vars(self)})"
+
+
+def node_registrations(node: str, uri: str, system_state, topic_types, service_uris) -> NodeRegistrations:
+    """`node`'s registrations from the master's getSystemState, getTopicTypes ([topic, type] pairs)
+    and the URIs of its services (name -> rosrpc URI, from lookupService)."""
+    publishers, subscribers, services = system_state
+    types = dict((topic, data_type) for topic, data_type in topic_types)
+
+    def topics_of(groups):
+        # "*": any type, as rosbag record subscribes; the master lists no type for a topic nobody publishes
+        return [(topic, types.get(topic, "*")) for topic, nodes in groups if node in nodes]
+    return NodeRegistrations(uri, topics_of(publishers), topics_of(subscribers),
+                             [(name, service_uris[name]) for name in services_of(node, system_state)
+                              if name in service_uris])
+
+
+def services_of(node: str, system_state) -> Iterable[str]:
+    """The names of the services `node` provides, from the master's getSystemState."""
+    return [name for name, nodes in system_state[2] if node in nodes]
