@@ -1,11 +1,13 @@
 """Kill a test's roscore and start a new one on the same port: the fault tests' restarted master."""
 import signal
+import time
 
 from ros_harness import descendants, kill_quietly, wait_until
 
 
 def restart_roscore(master):
-    """SIGKILL the roscore (master and rosout) and start a new one on the same port.
+    """SIGKILL the roscore (master and rosout) and start a new one on the same port; returns the
+    time.monotonic() at which the new master first answered.
 
     The probe goes too (it was registered with the old master); `master.probe` makes a new one.
     """
@@ -16,4 +18,5 @@ def restart_roscore(master):
     master.core.wait(10)
     wait_until(lambda: not master.is_up(), 10, "the old master still answers")
     master.core = master.start(["roscore", "-p", str(master.port)], name="roscore-restarted")
-    wait_until(master.is_up, 30, "the restarted roscore did not come up")
+    wait_until(master.is_up, 30, "the restarted roscore did not come up", interval=0.01)
+    return time.monotonic()

@@ -203,6 +203,7 @@ def test_a_sigkilled_node_is_respawned_and_the_robot_stops_meanwhile(robot, name
 
 
 def test_a_restarted_roscore_gets_every_node_and_parameter_back_without_restarting_the_launch(robot):
+    """Twice: the guards respawned after the first restart watch for the next."""
     master, control = robot
     launches = [process for process in master.processes if process.name.startswith("roslaunch-")]
     before = latest_odometry(master.probe)["position"]
@@ -225,5 +226,17 @@ def test_a_restarted_roscore_gets_every_node_and_parameter_back_without_restarti
     finally:
         source.kill()
     watch_until_at_rest(control)
+    saved = master.param("/turtlebot3_core/saved_odometry")
+    restart_roscore(master)  # again: the guards respawned after the first restart must see this one too
+    for name in DAEMON_NODES:
+        master.wait_for_node(name, timeout=60)
+    source = KeySource(master)
+    try:
+        wait_until_driving(control)
+    finally:
+        source.kill()
+    watch_until_at_rest(control)
+    wait_until(lambda: master.param("/turtlebot3_core/saved_odometry") != saved, 10,
+               "the driver no longer saves its odometry (for a respawn to resume from)")
     assert all(process.running() for process in launches), "a launch had to be restarted"
 
