@@ -44,9 +44,9 @@ def rejoin_restarted_masters(period=PERIOD):
 
 def registrar():
     """rospy's RegManager of this process, once it has registered with a master (None before)."""
-    listeners = get_registration_listeners()
-    with listeners.lock:
-        return next((listener for listener in listeners.listeners if isinstance(listener, RegManager)), None)
+    # A copy without the listeners' lock: rospy holds it while a new publisher waits for an absent master.
+    listeners = list(get_registration_listeners().listeners)
+    return next((listener for listener in listeners if isinstance(listener, RegManager)), None)
 
 
 def registrations():
