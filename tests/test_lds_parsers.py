@@ -208,6 +208,16 @@ def test_lds02_scan_is_stamped_at_the_end_of_its_revolution_and_counts_time_back
     assert 20.0 - 0.1 < scan.stamp < 20.0
 
 
+def test_lds02_revolution_joined_midway_is_not_published():
+    # The driver opened the port with the LIDAR three quarters round: that first stretch is no scan.
+    stream = lds02_stream(3)
+    packet_count = len(stream) // 47
+    lds = Lds02()
+    scans = lds.feed(stream[47 * (packet_count * 7 // 24):])  # 7/8 of a turn in: 1/8 of a turn before the wrap
+    assert len(scans) == 1 and sum(1 for value in scans[0].ranges if value > 0) > 200
+    assert lds.counters()["revolutions dropped"] == 1
+
+
 def test_unknown_motor_speed_gives_no_beam_timing():
     packets = [lds01_protocol.encode_packet(index, 0, [(100, 1000)] * 6) for index in range(60)]
     [scan] = Lds01().feed(b"".join(packets) + packets[0][:2], read_time=7.0)

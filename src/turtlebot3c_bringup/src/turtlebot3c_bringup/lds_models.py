@@ -87,9 +87,12 @@ class Lds02:
     range_min = 0.16
     range_max = 8.0
 
+    min_span = 180.0  # degrees: less than half a turn (the first, joined midway) is not worth publishing
+
     def __init__(self, correct_geometry: bool = True):
         self.parser = lds02_protocol.Lds02Parser()
         self.correct_geometry = correct_geometry
+        self.dropped_revolutions = 0
 
     def feed(self, data: bytes, read_time: float = 0.0) -> List[Scan]:
         """Scans completed by `data`, which was read at `read_time` (s).
@@ -102,6 +105,9 @@ class Lds02:
         scans = []
         for left, piece in _pieces(data, lds02_protocol.PACKET_SIZE):
             for points in self.parser.feed(piece):
+                if not points or points[-1].angle - points[0].angle < self.min_span:
+                    self.dropped_revolutions += 1
+                    continue
                 ranges, intensities = lds02_protocol.fixed_scan(points, self.correct_geometry)
                 rpm = self.parser.speed / 6.0  # deg/s -> rpm
                 packets = max(len(points), 1) / lds02_protocol.POINTS_PER_PACKET
@@ -113,7 +119,8 @@ class Lds02:
 
     def counters(self) -> Dict[str, int]:
         return {"bytes discarded": self.parser.bytes_discarded, "packets": self.parser.packets_accepted,
-                "crc errors": self.parser.crc_errors, "implausible packets": self.parser.implausible_packets}
+                "crc errors": self.parser.crc_errors, "implausible packets": self.parser.implausible_packets,
+                "revolutions dropped": self.dropped_revolutions}
 
 
 LDS_MODELS = {"LDS-01": Lds01, "LDS-02": Lds02}
