@@ -15,11 +15,11 @@ from test_snap_support import (
     MAP_FOLDER,
     REPO,
     SnapSystem,
-    install_space_with_standins,
     main_command_line,
     user_environment,
 )
 
+import ros_harness
 from turtlebot3c_2dnav import map_files
 
 OLD_REVISION = "927994b635b1910ea0551378e638b26b832ffce4"  # the last commit with maps in $SNAP_USER_COMMON/map
@@ -48,7 +48,7 @@ def old_revision(folder):
 @pytest.fixture
 def system(make_master, tmp_path):
     master = make_master()
-    system = SnapSystem(tmp_path / "root", build_dir=install_space_with_standins(tmp_path / "build"),
+    system = SnapSystem(tmp_path / "root", build_dir=ros_harness.BUILD,
                         etc_environment={"ROS_MASTER_URI": master.uri, "ROS_HOSTNAME": "127.0.0.1"})
     system.master = master
     system.snapsim("install", old_revision(tmp_path), "--dangerous")

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 from pty_session import PtySession
-from test_snap_support import REPO, SNAPSIM, SnapSystem, install_space_with_standins
+from test_snap_support import REPO, SNAPSIM, SnapSystem
 
 import ros_harness
 from ros_harness import Process, RosProbe, wait_until
@@ -118,13 +118,12 @@ def machines(ros_env, tmp_path_factory):
     robot_host, remote_host = hosts
     systems, processes, probes = [], [], []
     try:
-        build = install_space_with_standins(folder / "build")
-        robot = HostSnapSystem(robot_host, folder / "robot", build)
+        robot = HostSnapSystem(robot_host, folder / "robot", ros_harness.BUILD)
         systems.append(robot)
         robot.snapsim("install", REPO, "--dangerous")
         assert robot.config("turtlebot3c")["ros-master-host"] == "tb3c-robot.local"
         robot.snapsim("set", "turtlebot3c", "simulation=true")
-        remote = HostSnapSystem(remote_host, folder / "remote", build)
+        remote = HostSnapSystem(remote_host, folder / "remote", ros_harness.BUILD)
         systems.append(remote)
         remote.snapsim("install", REPO, "--dangerous")
         remote.snapsim("stop", "--disable", "turtlebot3c.core", "turtlebot3c.teleop")  # a laptop, not a robot

@@ -2,12 +2,10 @@
 import re
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 import yaml
 from snapsim_lib import lint, prime
-from test_snap_support import install_space_with_standins
 
 import ros_harness
 
@@ -116,11 +114,3 @@ def test_every_local_script_is_used_by_an_app_or_another_script():
     for script in (REPO / "snap" / "local").glob("*.sh"):
         uses = text.count(script.name) - script.read_text().count(script.name)
         assert uses > 0, f"{script.name} is shipped but nothing runs it"
-
-
-def test_standin_install_space_only_adds_missing_files(tmp_path):
-    copy = install_space_with_standins(tmp_path) / "prime" / "opt" / "ros" / "noetic"
-    for path in ros_harness.PRIME_ROS.rglob("*"):
-        if path.is_file() and not path.is_symlink() and path.suffix in (".launch", ".xml"):
-            assert (copy / path.relative_to(ros_harness.PRIME_ROS)).read_text() == path.read_text()
-    assert Path(copy / "lib" / "turtlebot3c_2dnav" / "map_saver").exists()

@@ -1,14 +1,6 @@
-"""Helpers for the snap tests: a snapsim system under a temporary root, and test stand-ins.
-
-STAND-INS: until the real turtlebot3c_bringup launch file, the mapping and
-navigation launch files, key/joy launch files and turtlebot3c_2dnav's map_saver
-exist, tests put stand-ins for them in a private copy of the install space (never
-in the build itself). Each is added only when the real file is missing, so the
-tests run the real ones as soon as they land.
-"""
+"""Helpers for the snap tests: a snapsim system under a temporary root."""
 import json
 import os
-import shutil
 import signal
 import subprocess
 import time
@@ -21,78 +13,6 @@ from ros_harness import wait_until
 
 REPO = ros_harness.REPO
 SNAPSIM = REPO / "scripts" / "snapsim"
-STANDIN_NODE = '<node pkg="topic_tools" type="relay" name="{name}" args="{name}_in {name}_out"/>'
-
-
-def _standin_launch(name, args):
-    lines = ["<launch>", f"  <!-- TEST STAND-IN for {name}: records its arguments as parameters. -->"]
-    lines += [f'  <arg name="{arg}"/>' for arg in args]
-    lines += [f'  <param name="standin/{name}/{arg}" value="$(arg {arg})"/>' for arg in args]
-    lines += ["  " + STANDIN_NODE.format(name=f"standin_{name}"), "</launch>", ""]
-    return "\n".join(lines)
-
-
-STANDIN_LAUNCH_FILES = {
-    "share/turtlebot3c_bringup/launch/turtlebot3c_bringup.launch":
-        ("bringup", ["simulation", "model", "lds_model", "opencr_port", "lds_port"]),
-    "share/turtlebot3c_2dnav/launch/turtlebot3c_mapping.launch": ("mapping", ["model"]),
-    "share/turtlebot3c_2dnav/launch/turtlebot3c_navigation.launch": ("navigation", ["model", "map_file"]),
-    "share/turtlebot3c_teleop/launch/key.launch": ("key", ["model"]),
-    "share/turtlebot3c_teleop/launch/joy.launch": ("joy", ["model"]),
-}
-
-STANDIN_MAP_SAVER = '''#!/usr/bin/env python3
-"""TEST STAND-IN for turtlebot3c_2dnav's map_saver: map_saver -f PREFIX writes PREFIX.pgm and
-PREFIX.yaml from the first /map (map_server's format and thresholds), or fails when none comes."""
-import sys
-
-import rospy
-from nav_msgs.msg import OccupancyGrid
-
-prefix = sys.argv[sys.argv.index("-f") + 1]
-rospy.init_node("map_saver", anonymous=True)
-try:
-    grid = rospy.wait_for_message("/map", OccupancyGrid, timeout=5.0)
-except rospy.ROSException:
-    sys.exit("map_saver: no map arrived on /map within 5 s")
-width, height = grid.info.width, grid.info.height
-pixels = bytearray()
-for row in range(height - 1, -1, -1):
-    for value in grid.data[row * width:(row + 1) * width]:
-        pixels.append(254 if 0 <= value <= 19 else 0 if value >= 65 else 205)
-with open(prefix + ".pgm", "wb") as image:
-    image.write(b"P5\\n# CREATOR: map_saver stand-in\\n%d %d\\n255\\n" % (width, height) + bytes(pixels))
-origin = grid.info.origin.position
-with open(prefix + ".yaml", "w") as description:
-    description.write("image: %s.pgm\\nresolution: %f\\norigin: [%f, %f, 0.000000]\\nnegate: 0\\n"
-                      "occupied_thresh: 0.65\\nfree_thresh: 0.196\\n"
-                      % (prefix, grid.info.resolution, origin.x, origin.y))
-print("map_saver: saved " + prefix + ".yaml")
-'''
-
-
-def install_space_with_standins(destination):
-    """A copy of the built install space at destination/prime/opt/ros/noetic, with stand-ins added."""
-    source = ros_harness.PRIME_ROS
-    target = Path(destination) / "prime" / "opt" / "ros" / "noetic"
-    shutil.copytree(source, target, symlinks=True)
-    for path in target.rglob("*"):
-        if path.is_file() and not path.is_symlink():
-            data = path.read_bytes()
-            if str(source).encode() in data and b"\0" not in data:
-                path.write_bytes(data.replace(str(source).encode(), str(target).encode()))
-    for relative, (name, args) in STANDIN_LAUNCH_FILES.items():
-        if not (target / relative).exists():
-            (target / relative).parent.mkdir(parents=True, exist_ok=True)
-            (target / relative).write_text(_standin_launch(name, args))
-    map_saver = target / "lib" / "turtlebot3c_2dnav" / "map_saver"
-    if not map_saver.exists():
-        map_saver.parent.mkdir(parents=True, exist_ok=True)
-        map_saver.write_text(STANDIN_MAP_SAVER)
-        map_saver.chmod(0o755)
-    return Path(destination)
-
-
 def user_environment(**extra):
     """A plain user's shell environment: no ROS workspace sourced."""
     env = {
@@ -302,9 +222,7 @@ def install_turtlebot3c(folder, master):
     /etc/environment gives the services the test master's URI, as an owner could
     give theirs; ros_network.sh leaves a URI given on purpose alone.
     """
-    folder = Path(folder)
-    build = install_space_with_standins(folder / "build")
-    system = SnapSystem(folder / "root", build_dir=build, etc_environment={
+    system = SnapSystem(Path(folder) / "root", build_dir=ros_harness.BUILD, etc_environment={
         "ROS_MASTER_URI": master.uri, "ROS_HOSTNAME": "127.0.0.1"})
     system.snapsim("install", REPO, "--dangerous")
     system.wait_state("turtlebot3c", "teleop", ["active"])
