@@ -1,13 +1,13 @@
 """Refreshing from a revision that kept maps in root's $SNAP_USER_COMMON/map: every map moves to $SNAP_COMMON/maps.
 
-The earlier revision is the snap as this repository had it before the maps moved (its
-snap/ folder at OLD_REVISION, read with git), saving maps with its own scripts.
+The earlier revision is the snap as this repository had it before the maps moved, saving
+maps with its own scripts: OLD_REVISION, its snap/ folder as commit 927994b left it
+(`git archive 927994b snap`), kept whole with the tests so that they need no git history.
 """
 import hashlib
 import os
 import shutil
 import subprocess
-import tarfile
 
 import numpy as np
 import pytest
@@ -22,27 +22,12 @@ from test_snap_support import (
 import ros_harness
 from turtlebot3c_2dnav import map_files
 
-OLD_REVISION = "927994b635b1910ea0551378e638b26b832ffce4"  # the last commit with maps in $SNAP_USER_COMMON/map
+OLD_REVISION = REPO / "tests" / "fixtures" / "snap-before-maps-moved"  # the last with maps in $SNAP_USER_COMMON/map
 OLD_FOLDER = "root/snap/turtlebot3c/common/map"
 MIGRATE = REPO / "snap" / "local" / "migrate_maps.sh"
 MAP = {"header": {"frame_id": "map"},
        "info": {"resolution": 0.05, "width": 4, "height": 3, "origin": {"position": {"x": -1.0, "y": -2.0}}},
        "data": [0, 0, 100, -1] * 3}
-
-
-def old_revision(folder):
-    """The snap's project (snap/) as of OLD_REVISION."""
-    project = folder / "old-revision"
-    project.mkdir()
-    archive = folder / "old-revision.tar"
-    done = subprocess.run(["git", "-C", str(REPO), "archive", "-o", str(archive), OLD_REVISION, "snap"],
-                          capture_output=True, text=True)
-    assert done.returncode == 0, f"the earlier revision {OLD_REVISION} must be in the repository's history " \
-                                 f"(a full clone): {done.stderr}"
-    with tarfile.open(archive) as tar:
-        tar.extractall(project)
-    assert "$SNAP_USER_COMMON/map" in (project / "snap" / "local" / "save_map.sh").read_text()
-    return project
 
 
 @pytest.fixture
@@ -51,7 +36,7 @@ def system(make_master, tmp_path):
     system = SnapSystem(tmp_path / "root", build_dir=ros_harness.BUILD,
                         etc_environment={"ROS_MASTER_URI": master.uri, "ROS_HOSTNAME": "127.0.0.1"})
     system.master = master
-    system.snapsim("install", old_revision(tmp_path), "--dangerous")
+    system.snapsim("install", OLD_REVISION, "--dangerous")
     system.wait_state("turtlebot3c", "teleop", ["active"])
     master.wait_for_service("/mux/select", timeout=60)
     yield system
