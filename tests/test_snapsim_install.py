@@ -1,6 +1,7 @@
 """snapsim's install, run, remove and lint: snapd's order, environment and data handling."""
 import os
 import subprocess
+import sys
 import threading
 from pathlib import Path
 
@@ -9,6 +10,7 @@ import yaml
 from snapsim_lib.supervisor import root_processes
 from test_snap_support import SNAPSIM, SnapSystem, make_demo_project, trace, wait_for_file
 
+import ros_harness
 from ros_harness import wait_until
 
 
@@ -113,6 +115,31 @@ def test_nothing_is_written_outside_the_root(system, project, tmp_path):
     system.snapsim("remove", "--purge", "demo", env=outside)
     assert list(home.iterdir()) == []
     assert sorted(path.name for path in tmp_path.iterdir()) == ["demo", "home", "root"]
+
+
+def virtualenv_seeing_our_packages(folder):
+    """A virtualenv other than the project's, whose python3 imports what ours does (PyYAML...)."""
+    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(folder)], check=True, timeout=120)
+    [site_packages] = folder.glob("lib/python3*/site-packages")
+    ours = [path for path in sys.path if path.endswith(("site-packages", "dist-packages"))]
+    (site_packages / "ours.pth").write_text("".join(f"{path}\n" for path in ours))
+    return folder
+
+
+def test_services_a_hook_restarts_keep_the_virtualenv_snapsim_runs_in(system, project, tmp_path):
+    venv = virtualenv_seeing_our_packages(tmp_path / "other-venv")
+    started_by_it = {"PATH": f"{venv / 'bin'}:/usr/bin:/bin"}  # its python3 runs scripts/snapsim
+    system.snapsim("install", project, "--dangerous", env=started_by_it)
+    first = system.wait_state("demo", "svc", ["active"])["main_pid"]
+    main_pid_file = system.root / "var/snap/demo/common/main.pid"
+
+    system.snapsim("set", "demo", "restart-svc=true", env=started_by_it)  # configure: snapctl restart demo.svc
+
+    # service.sh writes main.pid after service-env: a new pid there means the restarted service's env is written
+    wait_until(lambda: main_pid_file.read_text().strip() not in ("", str(first)), 30, "svc never restarted")
+    path = environ(system.root / "var/snap/demo/common/service-env")["PATH"].split(":")
+    assert str(venv / "bin") in path
+    assert str(ros_harness.VENV / "bin") not in path
 
 
 def test_snapsim_needs_a_root(tmp_path):

@@ -10,6 +10,7 @@ All paths point into the state root.
 """
 import os
 import re
+import sys
 from pathlib import Path
 
 from . import prime as prime_module
@@ -28,9 +29,11 @@ def expand(text, env):
 
 
 def host_python_bin():
-    """The folder of the Python standing in for the base snap's python3 (the project's virtualenv)."""
-    venv = Path(os.environ.get("TURTLEBOT3C_VENV", prime_module.REPO / ".venv"))
-    return venv / "bin" if (venv / "bin" / "python3").exists() else None
+    """The folder of the Python standing in for the base snap's python3: the virtualenv snapsim runs in
+    (scripts/snapsim chooses it), or None outside one (the apps find python3 on their PATH)."""
+    if sys.prefix == sys.base_prefix:
+        return None
+    return Path(sys.prefix) / "bin"
 
 
 def base_path(layout, rest):
