@@ -7,7 +7,6 @@ current_map.yaml names a complete map, the new one or the previous one, which
 stays usable.
 """
 import os
-import shutil
 import signal
 import subprocess
 import time
@@ -17,7 +16,7 @@ import yaml
 from real_robot import node_pid
 from snapsim_lib.supervisor import root_processes
 from test_snap_maps import dated_maps, saved_map, shell
-from test_snap_support import MAP_FOLDER, REPO, SNAPSIM, install_turtlebot3c, main_command_line
+from test_snap_support import REPO, SNAPSIM, emptied_map_folder, install_turtlebot3c, main_command_line
 
 from ros_harness import descendants, kill_quietly, wait_until
 from turtlebot3c_2dnav.map_files import load_map
@@ -45,13 +44,7 @@ def system(ros_master, tmp_path_factory):
 @pytest.fixture
 def maps(system, ros_master):
     """The services' map folder with one previous map, current."""
-    folder = system.root / MAP_FOLDER
-    folder.mkdir(parents=True, exist_ok=True)
-    for path in folder.iterdir():
-        if path.is_dir() and not path.is_symlink():
-            shutil.rmtree(path)  # a killed save's private folder
-        else:
-            path.unlink()
+    folder = emptied_map_folder(system)
     saved_map(folder)
     shell(system, "mapping", "install_last_map.sh", ros_master.uri)
     return folder

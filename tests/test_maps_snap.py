@@ -11,7 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 from PIL import Image
-from test_snap_support import MAP_FOLDER, SNAPSIM, install_turtlebot3c, main_command_line, user_environment
+from test_snap_support import (
+    SNAPSIM,
+    emptied_map_folder,
+    install_turtlebot3c,
+    main_command_line,
+    user_environment,
+)
 
 from ros_harness import wait_until
 from turtlebot3c_2dnav import map_files
@@ -36,10 +42,7 @@ def system(ros_master):
 @pytest.fixture
 def maps(system):
     """The map folder, emptied, with map=latest (maps added by a test are current once the option is set)."""
-    folder = system.root / MAP_FOLDER
-    folder.mkdir(parents=True, exist_ok=True)
-    for path in folder.iterdir():
-        path.unlink()
+    folder = emptied_map_folder(system)
     system.snapsim("set", "turtlebot3c", "map=latest")
     return folder
 

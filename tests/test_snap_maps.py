@@ -4,7 +4,7 @@ import os
 import pytest
 from snapsim_lib.supervisor import root_processes
 from test_snap_support import (
-    MAP_FOLDER,
+    emptied_map_folder,
     install_turtlebot3c,
     main_command_line,
     mux_mark,
@@ -29,11 +29,7 @@ def system(ros_master, tmp_path_factory):
 @pytest.fixture
 def maps(system):
     """The services' map folder, emptied for the test."""
-    folder = system.root / MAP_FOLDER
-    folder.mkdir(parents=True, exist_ok=True)
-    for path in folder.iterdir():
-        path.unlink()
-    return folder
+    return emptied_map_folder(system)
 
 
 def shell(system, app, script, master_uri, check=True, **env):

@@ -1,6 +1,7 @@
 """Helpers for the snap tests: a snapsim system under a temporary root."""
 import json
 import os
+import shutil
 import signal
 import subprocess
 import time
@@ -214,6 +215,18 @@ def trace(system, snap="demo"):
 # --- the real turtlebot3c snap against a test roscore -----------------------------------
 
 MAP_FOLDER = "var/snap/turtlebot3c/common/maps"  # $SNAP_COMMON/maps, for every app and the owner
+
+
+def emptied_map_folder(system):
+    """The snap's map folder, made or emptied: maps, links and a killed save's private folders go."""
+    folder = system.root / MAP_FOLDER
+    folder.mkdir(parents=True, exist_ok=True)
+    for path in folder.iterdir():
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        else:
+            path.unlink()
+    return folder
 
 
 def install_turtlebot3c(folder, master):
