@@ -34,7 +34,8 @@ Pure Python and numpy; no rospy. Public API:
     unsupported or truncated image; the message names the file and the problem.
 
 ``trinary_pixels(data, occupied_threshold, free_threshold)``, ``read_pnm(path)``,
-``write_pgm(path, pixels, comment)`` are the building blocks, public for tools and tests.
+``write_pgm(path, pixels, comment)`` are the building blocks, public for tools and tests;
+``write_atomically(path, content)`` replaces a file whole or not at all (also for map_store).
 """
 import json
 import math
@@ -138,7 +139,7 @@ def save_map(occupancy_map, prefix, occupied_threshold=65, free_threshold=25):
         raise MapFileError(f"cannot save map {prefix}: folder {folder} does not exist")
     pixels = trinary_pixels(occupancy_map.data, occupied_threshold, free_threshold)
     write_pgm(pgm_path, pixels, f"turtlebot3c map {occupancy_map.resolution:.3f} m/pix")
-    _write_atomically(yaml_path, map_yaml_text(os.path.basename(pgm_path), occupancy_map).encode())
+    write_atomically(yaml_path, map_yaml_text(os.path.basename(pgm_path), occupancy_map).encode())
     return yaml_path, pgm_path
 
 
@@ -164,10 +165,12 @@ def write_pgm(path, pixels, comment=""):
     height, width = pixels.shape
     header = f"P5\n# {comment}\n{width} {height}\n255\n" if comment else \
         f"P5\n{width} {height}\n255\n"
-    _write_atomically(os.fspath(path), header.encode() + pixels.tobytes())
+    write_atomically(os.fspath(path), header.encode() + pixels.tobytes())
 
 
-def _write_atomically(path, content):
+def write_atomically(path, content):
+    """Write `content` (bytes) to a temporary file beside `path`, flushed to disk, then rename it to `path`:
+    readers see the old file or the new one whole, even after a crash; a failure leaves no temporary behind."""
     folder = os.path.dirname(os.path.abspath(path))
     handle, temporary = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".tmp", dir=folder)
     try:

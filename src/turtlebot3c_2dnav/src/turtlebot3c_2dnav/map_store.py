@@ -366,7 +366,7 @@ def _png_chunk(kind, data):
 
 
 def write_preview(occupancy_map, path, scale=1):
-    _write_replacing(os.fspath(path), encode_png(preview_pixels(occupancy_map, scale)))
+    map_files.write_atomically(os.fspath(path), encode_png(preview_pixels(occupancy_map, scale)))
     return os.fspath(path)
 
 
@@ -441,20 +441,6 @@ def _write_new(target, content):
         _link_new(temporary, target)
     finally:
         os.unlink(temporary)
-
-
-def _write_replacing(target, content):
-    folder = os.path.dirname(os.path.abspath(target))
-    handle, temporary = tempfile.mkstemp(prefix="." + os.path.basename(target) + ".", suffix=".tmp", dir=folder)
-    try:
-        with os.fdopen(handle, "wb") as stream:
-            stream.write(content)
-        os.chmod(temporary, 0o644)
-        os.replace(temporary, target)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(temporary)
-        raise
 
 
 def _unlink_all(paths):
