@@ -1,5 +1,6 @@
 """Joystick to velocity: deadman, per-model scaling and mux buttons, alone and against the real mux."""
 import pytest
+from roscore_restart import restart_roscore
 from test_joy_device import FULL, FakeJoystick
 
 from ros_harness import wait_until
@@ -177,3 +178,23 @@ def test_unplugging_the_joystick_while_driving_stops_the_robot(ros_master, joy_a
     probe.wait_for_message("/joy_vel", TWIST, start=joy_start, where=lambda m: m["linear"]["x"] == 0.0)
     probe.wait_for_message("/cmd_vel", TWIST, start=start, where=lambda m: m["linear"]["x"] == 0.0)
     joy_app.plug()
+
+
+def test_after_a_roscore_restart_a_button_selects_the_joystick_again_and_it_drives(ros_master, joy_app):
+    """Last here: the joystick app registers again in process, so it needs no restart; the mux,
+    restarted by its guard, is back on nav_vel, so the joystick drives only once selected anew."""
+    restart_roscore(ros_master)
+    for node in ("/mux", "/velocity_watchdog", "/joystick", "/joy_teleop"):
+        ros_master.wait_for_node(node, timeout=60)
+    probe = ros_master.probe
+    for topic, type_ in (("/joy", JOY), ("/cmd_vel", TWIST), ("/mux/selected", "std_msgs/String")):
+        probe.subscribe(topic, type_)
+    assert probe.wait_for_message("/mux/selected", "std_msgs/String", start=0, timeout=30)["data"] == "nav_vel"
+    press(probe, joy_app, 0, "joy_vel")
+    start = probe.count("/cmd_vel")
+    joy_app.axis(1, -FULL)
+    joy_app.button(DEADMAN, True)
+    probe.wait_for_message("/cmd_vel", TWIST, start=start, where=lambda m: m["linear"]["x"] > 0)
+    joy_app.button(DEADMAN, False)
+    probe.wait_for_message("/cmd_vel", TWIST, start=start, where=lambda m: m["linear"]["x"] == 0.0)
+    joy_app.axis(1, 0)
