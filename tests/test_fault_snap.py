@@ -15,8 +15,16 @@ import pytest
 import yaml
 from real_robot import node_pid
 from snapsim_lib.supervisor import root_processes
-from test_snap_maps import dated_maps, saved_map, shell
-from test_snap_support import REPO, SNAPSIM, emptied_map_folder, install_turtlebot3c, main_command_line
+from test_snap_support import (
+    REPO,
+    SNAPSIM,
+    app_shell,
+    dated_maps,
+    emptied_map_folder,
+    install_turtlebot3c,
+    main_command_line,
+    saved_map,
+)
 
 from ros_harness import descendants, kill_quietly, wait_until
 from turtlebot3c_2dnav.map_files import load_map
@@ -46,7 +54,7 @@ def maps(system, ros_master):
     """The services' map folder with one previous map, current."""
     folder = emptied_map_folder(system)
     saved_map(folder)
-    shell(system, "mapping", "install_last_map.sh", ros_master.uri)
+    app_shell(system, "mapping", "install_last_map.sh", ros_master.uri)
     return folder
 
 
@@ -117,7 +125,7 @@ def test_power_lost_while_saving_leaves_a_usable_current_map_and_the_next_save_c
         kill_quietly(pid, signal.SIGKILL)
     saving.wait(10)
     assert_previous_map_is_current_and_usable(maps, previous)
-    done = shell(system, "mapping", "save_map.sh && install_last_map.sh", ros_master.uri)
+    done = app_shell(system, "mapping", "save_map.sh && install_last_map.sh", ros_master.uri)
     assert "is now the current map" in done.stdout
     assert not list(maps.glob(".saving.*")), "a killed save's leftovers stayed"
     assert load_map(maps / "current_map.yaml").data.shape == (SIDE, SIDE)
@@ -142,7 +150,7 @@ def full_disk(maps):
 def test_a_full_disk_during_saving_is_a_clear_error_and_the_previous_map_stays(system, ros_master, full_disk):
     maps = full_disk
     previous = os.readlink(maps / "current_map.yaml")
-    done = shell(system, "mapping", "save_map.sh; install_last_map.sh", ros_master.uri, check=False)
+    done = app_shell(system, "mapping", "save_map.sh; install_last_map.sh", ros_master.uri, check=False)
     assert "No space left on device" in done.stderr, done.stderr
     assert "save_map: the map could not be saved" in done.stderr
     assert f"no new map was saved; the current map stays {previous}" in done.stderr

@@ -15,8 +15,8 @@ from test_snap_support import (
     MAP_FOLDER,
     REPO,
     SnapSystem,
+    app_shell,
     main_command_line,
-    user_environment,
 )
 
 import ros_harness
@@ -43,12 +43,6 @@ def system(make_master, tmp_path):
     system.shutdown()
 
 
-def shell(system, script, *args):
-    environment = user_environment(ROS_MASTER_URI=system.master.uri, ROS_HOSTNAME="127.0.0.1")
-    environment["TURTLEBOT3C_BUILD_DIR"] = system.env["TURTLEBOT3C_BUILD_DIR"]
-    return system.snapsim("run", "--shell", "turtlebot3c.mapping", "-c", script, "_", *args, env=environment)
-
-
 def save_with_old_revision(system, old, side, bag):
     """What stopping mapping did in the old revision: a new map (and bag) installed by its install_last_map.sh."""
     old.mkdir(parents=True, exist_ok=True)
@@ -57,7 +51,7 @@ def save_with_old_revision(system, old, side, bag):
     map_files.save_map(map_files.OccupancyMap(data, 0.05), old / "new_map")
     if bag:
         (old / "new_map.bag").write_bytes(b"#ROSBAG V2.0\n" + bytes(side))
-    shell(system, "install_last_map.sh")
+    app_shell(system, "mapping", "install_last_map.sh", system.master.uri)
     return os.readlink(old / "current_map.yaml")[:-len(".yaml")]
 
 
@@ -131,7 +125,7 @@ def test_a_refresh_undone_after_the_move_leaves_the_earlier_revision_every_map(s
     assert os.readlink(old / "current_map.yaml") == f"{names[1]}.yaml"
     assert sorted(path.name for path in old.iterdir() if path.suffix in (".yaml", ".pgm", ".bag")) == sorted(
         [f"{name}{suffix}" for name in names for suffix in (".yaml", ".pgm", ".bag")] + ["current_map.yaml"])
-    listed = shell(system, 'ls "$SNAP_USER_COMMON/map/"').stdout
+    listed = app_shell(system, "mapping", 'ls "$SNAP_USER_COMMON/map/"', system.master.uri).stdout
     assert f"{names[0]}.yaml" in listed and f"{names[1]}.pgm" in listed
 
 

@@ -13,10 +13,10 @@ import pytest
 from PIL import Image
 from test_snap_support import (
     SNAPSIM,
+    app_shell,
     emptied_map_folder,
     install_turtlebot3c,
     main_command_line,
-    user_environment,
 )
 
 from ros_harness import wait_until
@@ -261,9 +261,7 @@ def test_latest_follows_the_newest_map_again(system, maps):
 def install_saved_map(system, maps, ros_master):
     """What stopping mapping does after save_map.sh: install_last_map.sh, through the mapping app's chain."""
     map_files.save_map(grid(5, 5), maps / "new_map")
-    environment = user_environment(ROS_MASTER_URI=ros_master.uri, ROS_HOSTNAME="127.0.0.1")
-    environment["TURTLEBOT3C_BUILD_DIR"] = system.env["TURTLEBOT3C_BUILD_DIR"]
-    return system.snapsim("run", "--shell", "turtlebot3c.mapping", "-c", "install_last_map.sh", env=environment)
+    return app_shell(system, "mapping", "install_last_map.sh", ros_master.uri)
 
 
 def test_a_new_map_becomes_current_with_latest_and_is_only_listed_when_a_map_is_chosen(system, maps, ros_master):

@@ -4,12 +4,14 @@ import os
 import pytest
 from snapsim_lib.supervisor import root_processes
 from test_snap_support import (
+    app_shell,
+    dated_maps,
     emptied_map_folder,
     install_turtlebot3c,
     main_command_line,
     mux_mark,
+    saved_map,
     selected_mux_input,
-    user_environment,
 )
 
 from ros_harness import wait_until
@@ -32,38 +34,19 @@ def maps(system):
     return emptied_map_folder(system)
 
 
-def shell(system, app, script, master_uri, check=True, **env):
-    """`snap run --shell turtlebot3c.<app> -c script` as root on the robot, against `master_uri`."""
-    environment = user_environment(ROS_MASTER_URI=master_uri, ROS_HOSTNAME="127.0.0.1", **env)
-    environment["TURTLEBOT3C_BUILD_DIR"] = system.env["TURTLEBOT3C_BUILD_DIR"]
-    return system.snapsim("run", "--shell", f"turtlebot3c.{app}", "-c", script, env=environment, check=check)
-
-
-def saved_map(maps, name="new_map"):
-    """Files as save_map.sh leaves them for install_last_map.sh."""
-    (maps / f"{name}.pgm").write_bytes(b"P5\n4 3\n255\n" + bytes(12))
-    (maps / f"{name}.yaml").write_text(f"image: /somewhere/{name}.pgm\nresolution: 0.05\n"
-                                       "origin: [0.0, 0.0, 0.0]\nnegate: 0\noccupied_thresh: 0.65\n"
-                                       "free_thresh: 0.196\n")
-
-
-def dated_maps(maps):
-    return sorted(path.name for path in maps.glob("*.yaml") if path.name != "current_map.yaml")
-
-
 def test_key_and_joy_select_their_mux_input_through_their_chain(system, ros_master):
     mark = mux_mark(ros_master)
-    shell(system, "joy", "true", ros_master.uri)
+    app_shell(system, "joy", "true", ros_master.uri)
     assert selected_mux_input(ros_master, "joy_vel", since=mark) == "joy_vel"
     mark = mux_mark(ros_master)
-    shell(system, "key", "true", ros_master.uri)
+    app_shell(system, "key", "true", ros_master.uri)
     assert selected_mux_input(ros_master, "key_vel", since=mark) == "key_vel"
 
 
 def test_mux_selection_fails_clearly_when_teleop_is_not_running(system, ros_master):
     system.snapsim("stop", "turtlebot3c.teleop")
     try:
-        done = shell(system, "key", "echo RAN", ros_master.uri, check=False, MUX_SELECT_TIMEOUT=2)
+        done = app_shell(system, "key", "echo RAN", ros_master.uri, check=False, MUX_SELECT_TIMEOUT=2)
     finally:
         system.snapsim("start", "turtlebot3c.teleop")
         ros_master.wait_for_service("/mux/select", timeout=60)
@@ -74,7 +57,7 @@ def test_mux_selection_fails_clearly_when_teleop_is_not_running(system, ros_mast
 
 def test_mapping_stop_saves_a_dated_map_and_makes_it_current(system, ros_master, maps):
     ros_master.probe.publish("/map", "nav_msgs/OccupancyGrid", MAP, latch=True)
-    shell(system, "joy", "true", ros_master.uri)
+    app_shell(system, "joy", "true", ros_master.uri)
     mark = mux_mark(ros_master)
     system.snapsim("start", "turtlebot3c.mapping")
     assert "model:=waffle_pi" in main_command_line(system, "mapping")
@@ -109,9 +92,9 @@ def test_mapping_stop_saves_the_map_even_when_teleop_is_down(system, ros_master,
 def test_stop_with_no_new_map_keeps_previous_current_map(system, make_master, maps):
     saved_map(maps)
     quiet = make_master()  # a master where nobody publishes /map
-    shell(system, "mapping", "install_last_map.sh", quiet.uri)
+    app_shell(system, "mapping", "install_last_map.sh", quiet.uri)
     previous = os.readlink(maps / "current_map.yaml")
-    done = shell(system, "mapping", "save_map.sh; install_last_map.sh", quiet.uri, check=False)
+    done = app_shell(system, "mapping", "save_map.sh; install_last_map.sh", quiet.uri, check=False)
     assert os.readlink(maps / "current_map.yaml") == previous
     assert dated_maps(maps) == [previous]
     assert "save_map: the map could not be saved" in done.stderr
@@ -128,10 +111,7 @@ def test_maps_saved_within_one_second_get_distinct_names_and_all_are_kept(system
     script = ('PATH="$2:$PATH"; for n in 1 2 3; do'
               ' cp "$1/new.pgm" "$1/new_map.pgm"; cp "$1/new.yaml" "$1/new_map.yaml"; install_last_map.sh; done')
     saved_map(maps, "new")
-    environment = user_environment(ROS_MASTER_URI=ros_master.uri, ROS_HOSTNAME="127.0.0.1")
-    environment["TURTLEBOT3C_BUILD_DIR"] = system.env["TURTLEBOT3C_BUILD_DIR"]
-    system.snapsim("run", "--shell", "turtlebot3c.mapping", "-c", script, "_", maps, stuck_clock.parent,
-                   env=environment)
+    app_shell(system, "mapping", script, ros_master.uri, maps, stuck_clock.parent)
     stem = "2026-01-02_03-04-05"
     assert dated_maps(maps) == sorted([f"{stem}.yaml", f"{stem}_2.yaml", f"{stem}_3.yaml", "new.yaml"])
     assert os.readlink(maps / "current_map.yaml") == f"{stem}_3.yaml"
@@ -144,11 +124,11 @@ def test_maps_saved_within_one_second_get_distinct_names_and_all_are_kept(system
 def test_session_recording_keeps_the_name_of_its_map_or_is_kept_alone(system, ros_master, maps):
     saved_map(maps)
     (maps / "new_map.bag").write_bytes(b"#ROSBAG V2.0\n")
-    shell(system, "mapping", "install_last_map.sh", ros_master.uri)
+    app_shell(system, "mapping", "install_last_map.sh", ros_master.uri)
     stem = os.readlink(maps / "current_map.yaml")[:-len(".yaml")]
     assert (maps / f"{stem}.bag").read_bytes() == b"#ROSBAG V2.0\n"
     (maps / "new_map.bag.active").write_bytes(b"#ROSBAG V2.0\n")
-    done = shell(system, "mapping", "install_last_map.sh", ros_master.uri)
+    done = app_shell(system, "mapping", "install_last_map.sh", ros_master.uri)
     assert "no new map was saved" in done.stderr and "rosbag reindex" in done.stderr
     assert os.readlink(maps / "current_map.yaml") == f"{stem}.yaml"
     assert len(list(maps.glob("*.bag.active"))) == 1 and not list(maps.glob("new_map*"))
@@ -166,7 +146,7 @@ def test_navigation_without_a_map_refuses_clearly_and_is_not_restarted(system, r
 
 def test_navigation_drives_through_nav_vel_and_hands_back_key_vel_when_stopped(system, ros_master, maps):
     saved_map(maps)
-    shell(system, "mapping", "install_last_map.sh", ros_master.uri)
+    app_shell(system, "mapping", "install_last_map.sh", ros_master.uri)
     mark = mux_mark(ros_master)
     system.snapsim("start", "turtlebot3c.navigation")
     words = main_command_line(system, "navigation")

@@ -243,6 +243,26 @@ def install_turtlebot3c(folder, master):
     return system
 
 
+def app_shell(system, app, script, master_uri, *args, check=True, **env):
+    """`snap run --shell turtlebot3c.<app> -c script _ args...` as root on the robot, against `master_uri`."""
+    environment = user_environment(ROS_MASTER_URI=master_uri, ROS_HOSTNAME="127.0.0.1", **env)
+    return system.snapsim("run", "--shell", f"turtlebot3c.{app}", "-c", script, "_", *args, env=environment,
+                          check=check)
+
+
+def saved_map(maps, name="new_map"):
+    """Files as save_map.sh leaves them for install_last_map.sh."""
+    (maps / f"{name}.pgm").write_bytes(b"P5\n4 3\n255\n" + bytes(12))
+    (maps / f"{name}.yaml").write_text(f"image: /somewhere/{name}.pgm\nresolution: 0.05\n"
+                                       "origin: [0.0, 0.0, 0.0]\nnegate: 0\noccupied_thresh: 0.65\n"
+                                       "free_thresh: 0.196\n")
+
+
+def dated_maps(maps):
+    """The names of the maps' YAML files (the current map's link aside), sorted."""
+    return sorted(path.name for path in maps.glob("*.yaml") if path.name != "current_map.yaml")
+
+
 def main_command_line(system, app):
     """The command line of a service's main process once its chain has exec'd roslaunch."""
     def launched():
