@@ -218,6 +218,28 @@ def test_lds02_revolution_joined_midway_is_not_published():
     assert lds.counters()["revolutions dropped"] == 1
 
 
+def test_lds02_points_measured_after_the_wrap_that_land_on_the_front_go_to_the_scan_that_ends_there():
+    # Each revolution sees everything at its own distance, so a beam tells which revolution measured it.
+    # The optics' offset moves a 2 m point 6 degrees counter-clockwise: the first points of a revolution
+    # land on beams 0-6, which a scan measures last (time_increment < 0): they belong to the scan before.
+    def distance_mm(revolution):
+        return 2000 + 500 * revolution
+
+    packets = []
+    for number in range(3 * 30 + 2):  # three revolutions of 30 packets, and the next one under way
+        revolution, first = divmod(number, 30)
+        points = [(distance_mm(revolution), 200)] * 12
+        packets.append(lds02_protocol.encode_packet(1800, first * 1200, (first * 12 + 11) * 100, points))
+    scans = Lds02().feed(b"".join(packets))
+    assert len(scans) == 3
+
+    def metres(distance):
+        return lds02_protocol.corrected(lds02_protocol.Point(0.0, distance, 200))[0] / 1000.0
+    for number, scan in enumerate(scans):
+        assert all(scan.ranges[beam] == metres(distance_mm(number + 1)) for beam in range(0, 6))
+        assert all(scan.ranges[beam] == metres(distance_mm(number)) for beam in range(10, 350))
+
+
 def test_unknown_motor_speed_gives_no_beam_timing():
     packets = [lds01_protocol.encode_packet(index, 0, [(100, 1000)] * 6) for index in range(60)]
     [scan] = Lds01().feed(b"".join(packets) + packets[0][:2], read_time=7.0)

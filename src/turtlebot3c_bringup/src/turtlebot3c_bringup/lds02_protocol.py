@@ -148,6 +148,11 @@ class Lds02Parser:
         del buffer[:position]
         return revolutions
 
+    @property
+    def current_points(self) -> List[Point]:
+        """The points of the revolution under way (a copy)."""
+        return list(self._points)
+
     def _add(self, points):
         done = []
         for point in points:

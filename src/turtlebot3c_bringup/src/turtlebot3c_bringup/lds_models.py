@@ -88,34 +88,59 @@ class Lds02:
     range_max = 8.0
 
     min_span = 180.0  # degrees: less than half a turn (the first, joined midway) is not worth publishing
+    # Degrees into its next revolution where the LD08 may still measure points of a scan's front:
+    # the optics' offset moves points up to 6.8 degrees counter-clockwise.
+    lead = 10.0
 
     def __init__(self, correct_geometry: bool = True):
         self.parser = lds02_protocol.Lds02Parser()
         self.correct_geometry = correct_geometry
         self.dropped_revolutions = 0
+        self._finished = []  # (points, rpm, timing) of revolutions waiting for the start of the next
 
     def feed(self, data: bytes, read_time: float = 0.0) -> List[Scan]:
         """Scans completed by `data`, which was read at `read_time` (s).
 
-        The fixed layout's seam is at beam 0, the LD08's own revolution ends where its angle
-        wraps; the optics' offset shifts far points up to 7 degrees, so the few beams just
-        left of the front may hold points from the start of the revolution, 1 revolution
-        earlier than the time model says (see README, "Scan timing").
+        The LD08's revolution ends where its own (clockwise) angle wraps, but the scan's seam is
+        at beam 0, straight ahead, and the optics' offset moves points up to 7 degrees: the first
+        points of a revolution may land on beams 0-7, which the time model says are measured at
+        the END of a scan. Such points are given to the scan before (they were measured right
+        after its end), so every beam's time follows stamp + i * time_increment; a scan is
+        therefore published once the next revolution is `lead` degrees on (some 6 ms at 5 Hz).
         """
         scans = []
         for left, piece in _pieces(data, lds02_protocol.PACKET_SIZE):
             for points in self.parser.feed(piece):
-                if not points or points[-1].angle - points[0].angle < self.min_span:
-                    self.dropped_revolutions += 1
-                    continue
-                ranges, intensities = lds02_protocol.fixed_scan(points, self.correct_geometry)
                 rpm = self.parser.speed / 6.0  # deg/s -> rpm
                 packets = max(len(points), 1) / lds02_protocol.POINTS_PER_PACKET
                 bytes_per_second = lds02_protocol.PACKET_SIZE * packets * max(rpm, 1.0) / 60.0
                 # The revolution ends with the packet holding the wrap-around: about one packet late.
-                timing = _timing(rpm, read_time - left / bytes_per_second, 1.0 / packets)
-                scans.append(Scan(ranges, intensities, rpm, *timing))
+                self._finished.append((points, rpm, _timing(rpm, read_time - left / bytes_per_second, 1.0 / packets)))
+            while self._finished and (len(self._finished) > 1 or self._next_is_on(self.parser.current_points)):
+                points, rpm, timing = self._finished.pop(0)
+                following = self._finished[0][0] if self._finished else self.parser.current_points
+                scan = self._scan(points, following, rpm, timing)
+                if scan is not None:
+                    scans.append(scan)
         return scans
+
+    def _next_is_on(self, points) -> bool:
+        return bool(points) and points[-1].angle >= self.lead
+
+    def _belongs_to_previous_scan(self, point) -> bool:
+        if point.distance == 0 or point.angle >= self.lead:
+            return False
+        angle = lds02_protocol.corrected(point)[1] if self.correct_geometry else (360.0 - point.angle) % 360.0
+        return angle < 180.0
+
+    def _scan(self, points, following, rpm, timing):
+        if not points or points[-1].angle - points[0].angle < self.min_span:
+            self.dropped_revolutions += 1
+            return None
+        own = [point for point in points if not self._belongs_to_previous_scan(point)]
+        own += [point for point in following if self._belongs_to_previous_scan(point)]
+        ranges, intensities = lds02_protocol.fixed_scan(own, self.correct_geometry)
+        return Scan(ranges, intensities, rpm, *timing)
 
     def counters(self) -> Dict[str, int]:
         return {"bytes discarded": self.parser.bytes_discarded, "packets": self.parser.packets_accepted,
