@@ -51,7 +51,7 @@ def mapping(ros_master, tmp_path_factory):
     drive(probe, 0.0, 1.0, 3.0)
     drive(probe, 0.0, 0.0, 0.5)
     turned = time.time()
-    before = probe.wait_for_message("/map", GRID, timeout=30, start=0,  # a map from the turn's end or after
+    before = probe.wait_for_message("/map", GRID, timeout=30, start=0,  # one drawn during the turn or since
                                     where=lambda grid: grid["header"]["stamp"] > turned - 3.5)
     pid = node_pid(ros_master, SLAM)
     restarted = time.time()
