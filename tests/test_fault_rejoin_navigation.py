@@ -11,35 +11,16 @@ import time
 
 import numpy as np
 import pytest
+from nav_launch import GROUND_TRUTH, RESULT, SPAWN, SUCCEEDED, launch_navigation, pose_stamped
 from real_robot import node_pid
 from roscore_restart import restart_roscore
 
 from ros_harness import wait_until
-from turtlebot3c_2dnav.map_files import OccupancyMap, save_map
-from turtlebot3c_2dnav.navigation_loop import world_layers
-from turtlebot3c_sim.world import load_world
 
-RESULT = "move_base_msgs/MoveBaseActionResult"
 POSE = "geometry_msgs/PoseWithCovarianceStamped"
-GROUND_TRUTH = "nav_msgs/Odometry"
-SUCCEEDED = 3
-SPAWN = (-2.0, -0.5, 0.0)
 NAVIGATION_NODES = ("/map_server", "/amcl", "/move_base")
 GOAL_ACROSS = (-0.55, -0.55, math.pi / 2)  # sent before the restart, reached after it
 GOAL_AFTER = (-1.8, -0.5, math.pi)
-
-
-def world_map(folder):
-    layers = world_layers(load_world("turtlebot3_world"))
-    folder.mkdir(parents=True, exist_ok=True)
-    yaml_path, _ = save_map(OccupancyMap(np.where(layers.occupied, 100, 0), layers.info.resolution,
-                                         (layers.info.origin_x, layers.info.origin_y, 0)), folder / "current_map")
-    return yaml_path
-
-
-def pose_stamped(x, y, yaw):
-    return {"header": {"frame_id": "map"},
-            "pose": {"position": {"x": x, "y": y}, "orientation": {"z": math.sin(yaw / 2), "w": math.cos(yaw / 2)}}}
 
 
 def true_position(probe):
@@ -59,16 +40,8 @@ def localisation_error(probe, estimate):
 @pytest.fixture(scope="module")
 def navigation(ros_master):
     """Navigation localised at the spawn pose, driving to a goal when the roscore is restarted; the pids before."""
-    map_file = world_map(ros_master.workdir / "map")
-    ros_master.launch("turtlebot3c_sim", "turtlebot3_world.launch", "model:=burger")
-    ros_master.launch("turtlebot3c_bringup", "turtlebot3c_bringup.launch", "simulation:=true", "model:=burger")
-    ros_master.launch("turtlebot3c_teleop", "turtlebot3c_teleop.launch")
-    ros_master.launch("turtlebot3c_2dnav", "turtlebot3c_navigation.launch", "model:=burger", f"map_file:={map_file}",
-                      f"initial_pose_x:={SPAWN[0]}", f"initial_pose_y:={SPAWN[1]}", f"initial_pose_a:={SPAWN[2]}")
-    for node in NAVIGATION_NODES + ("/mux", "/simulator"):
-        ros_master.wait_for_node(node, timeout=90)
+    launch_navigation(ros_master)
     probe = ros_master.probe
-    probe.wait_for_message("/amcl_pose", POSE, timeout=60, start=0)
     pids = {name: node_pid(ros_master, name) for name in NAVIGATION_NODES}
     send_goal(probe, "across-the-restart", GOAL_ACROSS)
     wait_until(lambda: math.hypot(*np.subtract(true_position(probe), SPAWN[:2])) > 0.1, 60, "the robot never set off")
