@@ -340,3 +340,17 @@ def new_workdir(prefix):
 
 def python():
     return str(VENV / "bin" / "python3") if (VENV / "bin" / "python3").exists() else sys.executable
+
+
+BENCH_INSIDE = "TURTLEBOT3C_BENCH_INSIDE"
+
+
+def run_in_install_space(script, **extra_env):
+    """For the benchmarks in scripts/: unless it already runs there, run `script` again, with the same
+    arguments, in the install spaces' environment (rospy, our packages) plus `extra_env`."""
+    if os.environ.get(BENCH_INSIDE) == "1":
+        return
+    env = install_space_environment()
+    env.update(extra_env)
+    env[BENCH_INSIDE] = "1"
+    os.execve(python(), [python(), str(script)] + sys.argv[1:], env)
