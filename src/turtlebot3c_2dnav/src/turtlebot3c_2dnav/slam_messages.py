@@ -1,8 +1,8 @@
-"""Between ROS messages and the SLAM core: scan geometry, sensor mounts, odometry, map messages.
+"""Between ROS messages and the SLAM core: scan geometry, sensor mounts, odometry.
 
-No rospy. Reading functions only use message attributes, so they serve rospy messages (live
-node) and rosbags messages (offline re-mapping) alike; the map message builders import
-nav_msgs when called.
+No rospy. These functions only read message attributes, so they serve rospy messages (live
+node) and rosbags messages (offline re-mapping) alike. The map messages the node publishes
+are built by navigation_msgs, as map_server's are.
 """
 import math
 
@@ -71,25 +71,3 @@ def interpolate_pose(before, after, fraction):
             before[1] + (after[1] - before[1]) * fraction,
             wrap_angle(before[2] + wrap_angle(after[2] - before[2]) * fraction))
 
-
-def occupancy_grid_message(occupancy_map, frame_id, stamp):
-    """nav_msgs/OccupancyGrid of a map_files.OccupancyMap."""
-    from nav_msgs.msg import OccupancyGrid
-    grid = OccupancyGrid()
-    grid.header.frame_id = frame_id
-    grid.header.stamp = stamp
-    grid.info = map_metadata_message(occupancy_map, stamp)
-    grid.data = occupancy_map.grid_message_data()
-    return grid
-
-
-def map_metadata_message(occupancy_map, stamp):
-    from nav_msgs.msg import MapMetaData
-    info = MapMetaData()
-    info.map_load_time = stamp
-    info.resolution = occupancy_map.resolution
-    info.width, info.height = occupancy_map.width, occupancy_map.height
-    x, y, yaw = occupancy_map.origin
-    info.origin.position.x, info.origin.position.y = x, y
-    info.origin.orientation.z, info.origin.orientation.w = math.sin(yaw / 2.0), math.cos(yaw / 2.0)
-    return info
