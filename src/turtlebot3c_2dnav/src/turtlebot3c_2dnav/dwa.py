@@ -38,7 +38,8 @@ class DwaParams(NamedTuple):
     occdist_scale: float = 0.3
     lookahead: float = 0.5
     rotate_in_place_threshold: float = 0.9  # rad of heading error to the carrot
-    approach_deceleration: float = 0.3  # m/s^2: the braking profile towards the goal
+    turn_braking: float = 0.6  # share of acc_lim_theta planned for braking turns on the spot
+    approach_deceleration: float = 1.0  # m/s^2: the braking profile towards the goal
     min_approach_vel: float = 0.03
     approach_time_weight: float = 0.05  # m of goal distance worth one second sooner
     escape_clearance: float = 0.125  # m, nearest obstacle to the centre on arcs leaving the band
@@ -133,14 +134,22 @@ class DwaController:
         return plan[nearest + ahead], False
 
     def _turn(self, error, velocity, status):
-        """Turn on the spot towards `error`, braking in time not to overshoot."""
+        """Turn on the spot towards `error` as fast as the limits allow: the speed from which
+        braking at turn_braking of the acceleration limit (room for the control period's lag)
+        stops the robot on the target heading."""
         p = self.params
-        reachable = math.sqrt(2.0 * p.acc_lim_theta * 0.8 * abs(error))
-        speed = min(p.max_vel_theta, reachable, max(p.min_in_place_vel_theta, 3.0 * abs(error)))
+        braking = math.sqrt(2.0 * p.acc_lim_theta * p.turn_braking * abs(error))
+        speed = min(p.max_vel_theta, max(p.min_in_place_vel_theta, braking))
         return Command(0.0, math.copysign(speed, error), status)
 
     def _align(self, error, velocity):
-        if abs(error) <= self.params.yaw_goal_tolerance * 0.5:
+        """Turn to the goal heading; arrived once the heading the robot comes to rest at,
+        braking now at its acceleration limit, is within half the tolerance: no crawl onto
+        the heading first, and the resting pose keeps a margin for localisation error."""
+        p = self.params
+        w = velocity[1]
+        resting_error = error - math.copysign(w * w / (2.0 * p.acc_lim_theta), w)
+        if abs(error) <= p.yaw_goal_tolerance and abs(resting_error) <= 0.5 * p.yaw_goal_tolerance:
             return Command(0.0, 0.0, "arrived")
         return self._turn(error, velocity, "align")
 
