@@ -30,9 +30,41 @@ class MapLayers(NamedTuple):
     unknown: np.ndarray
 
 
-def map_layers(data, resolution, origin, occupied_value=65, free_value=25) -> MapLayers:
-    """Occupied / free / unknown bool grids of occupancy values (rows = y index)."""
+def axis_aligned(data, resolution, origin, samples=3):
+    """(data, origin) of a grid turned by its origin's yaw (origin (x, y[, yaw]); as map_server
+    places it: the grid rotated about the corner of cell (0, 0)) resampled onto an unrotated
+    grid of the same resolution that covers it. Each new cell takes the highest value found at samples x
+    samples points spread over it, so no obstacle cell is lost between the two lattices (an
+    obstacle may grow by up to a cell); cells wholly outside the turned grid are unknown (-1).
+    A grid with no yaw comes back as it is."""
     data = np.asarray(data)
+    x0, y0 = float(origin[0]), float(origin[1])
+    yaw = float(origin[2]) if len(origin) > 2 else 0.0
+    if abs(math.atan2(math.sin(yaw), math.cos(yaw))) < 1e-9:
+        return data, (x0, y0, 0.0)
+    height, width = data.shape
+    c, s = math.cos(yaw), math.sin(yaw)
+    corners = np.array([[0.0, 0.0], [width, 0.0], [0.0, height], [width, height]]) * resolution
+    xs, ys = x0 + c * corners[:, 0] - s * corners[:, 1], y0 + s * corners[:, 0] + c * corners[:, 1]
+    new_width = int(math.ceil((xs.max() - xs.min()) / resolution - 1e-6))
+    new_height = int(math.ceil((ys.max() - ys.min()) / resolution - 1e-6))
+    resampled = np.full((new_height, new_width), -1, dtype=np.result_type(data.dtype, np.int8))
+    offsets = (np.arange(samples) + 0.5) / samples
+    for fx in offsets:
+        for fy in offsets:
+            dx = xs.min() + (np.arange(new_width)[None, :] + fx) * resolution - x0
+            dy = ys.min() + (np.arange(new_height)[:, None] + fy) * resolution - y0
+            col = np.floor((c * dx + s * dy) / resolution).astype(int)
+            row = np.floor((-s * dx + c * dy) / resolution).astype(int)
+            inside = (row >= 0) & (row < height) & (col >= 0) & (col < width)
+            resampled[inside] = np.maximum(resampled[inside], data[row[inside], col[inside]])
+    return resampled, (float(xs.min()), float(ys.min()), 0.0)
+
+
+def map_layers(data, resolution, origin, occupied_value=65, free_value=25) -> MapLayers:
+    """Occupied / free / unknown bool grids of occupancy values (rows = y index); a map whose
+    origin has a yaw is first resampled onto an unrotated grid (axis_aligned)."""
+    data, origin = axis_aligned(data, resolution, origin)
     info = GridInfo(float(resolution), data.shape[1], data.shape[0], float(origin[0]), float(origin[1]))
     unknown = data < 0
     occupied = data >= occupied_value
