@@ -146,14 +146,15 @@ def _services(layout, args):
 
 def _logs(layout, args):
     units = {journal.unit_name(snap, app) for snap, app in services.resolve(layout, args.services)}
-    records = [record for record in journal.read(layout) if record["unit"] in units]
+    everything = journal.read(layout)
+    records = [record for record in everything if record["unit"] in units]
     if args.n != "all":
         records = records[-int(args.n):] if int(args.n) > 0 else []
     for record in records:
         print(journal.format_record(record), flush=True)
     if not args.follow:
         return
-    seen = len(journal.read(layout))
+    seen = len(everything)  # the read shown above: a line logged since comes next, none is skipped
     try:
         while True:
             time.sleep(0.2)
