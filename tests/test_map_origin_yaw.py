@@ -10,6 +10,7 @@ import pytest
 from turtlebot3c_2dnav.map_files import OccupancyMap
 from turtlebot3c_2dnav.navigation_msgs import grid_from_msg, occupancy_grid_msg
 from turtlebot3c_2dnav.navigation_stack import axis_aligned, map_layers
+from turtlebot3c_2dnav.slam_evaluation import ground_truth_window
 
 RESOLUTION = 0.1
 
@@ -66,3 +67,10 @@ def test_a_map_without_yaw_keeps_its_grid_and_origin():
     layers = map_layers(data, RESOLUTION, (1.0, -0.5, 0.0))
     assert (layers.info.origin_x, layers.info.origin_y) == (1.0, -0.5)
     assert layers.occupied[2, 15] and layers.occupied.sum() == 1
+
+
+def test_slam_evaluation_refuses_a_turned_map_with_a_clear_reason_and_takes_an_unturned_one():
+    with pytest.raises(ValueError, match="origin yaw 0.700"):
+        ground_truth_window(OccupancyMap(grid_with_obstacle(2, 15), RESOLUTION, (1.0, -0.5, 0.7)))
+    assert ground_truth_window(OccupancyMap(grid_with_obstacle(2, 15), RESOLUTION, (1.0, -0.5, 0.0))) == \
+        ((1.0, -0.5), 20, 10)

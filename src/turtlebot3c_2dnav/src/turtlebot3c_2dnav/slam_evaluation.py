@@ -12,7 +12,13 @@ from .slam_se2 import wrap_angle
 
 
 def ground_truth_window(occupancy_map):
-    """(origin_xy, width, height) of the grid cells of an OccupancyMap, for World.rasterize."""
+    """(origin_xy, width, height) of the grid cells of an OccupancyMap, for World.rasterize;
+    a map turned by its origin's yaw is refused (its cells are compared one to one with an
+    unrotated rasterisation)."""
+    yaw = occupancy_map.origin[2]
+    if abs(math.atan2(math.sin(yaw), math.cos(yaw))) > 1e-9:
+        raise ValueError(f"map origin yaw {yaw:.3f} rad: the SLAM evaluation compares unrotated grids only "
+                         "(our SLAM saves maps with yaw 0)")
     return (occupancy_map.origin[0], occupancy_map.origin[1]), occupancy_map.width, occupancy_map.height
 
 
