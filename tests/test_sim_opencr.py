@@ -87,11 +87,41 @@ def test_heartbeat_silence_of_half_a_second_zeroes_the_goal():
     assert sim.command == (0.0, 0.0)
 
 
-def test_velocity_commands_are_clamped_to_the_model():
+def wheel_speeds(command, model):
+    linear, angular = command
+    return linear - angular * model.wheel_separation / 2.0, linear + angular * model.wheel_separation / 2.0
+
+
+WHEEL_LIMIT = 2.0 * math.pi * 0.033 * 337 * 0.229 / 60.0  # m/s: Goal_Velocity 337 units of 0.229 rpm
+
+
+def test_velocity_commands_are_clamped_to_the_model_then_each_wheel_to_its_limit():
     opencr, sim = board("waffle")
     write(opencr, table.HEARTBEAT, b"\x01")
     write(opencr, table.CMD_VELOCITY_START, table.encode_velocity_command(3.0, -9.0))
-    assert sim.command == pytest.approx((sim.model.max_linear_velocity, -sim.model.max_angular_velocity))
+    # Clamped to the model: full speed and a full turn: the outer wheel would need twice its top speed, so it runs at
+    # its limit and the inner one stands; the robot pivots on it at half speed.
+    left, right = wheel_speeds(sim.command, sim.model)
+    assert left == pytest.approx(WHEEL_LIMIT) and right == pytest.approx(0.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("model, command", [("waffle_pi", (0.26, 0.0)), ("waffle_pi", (0.0, 1.8)),
+                                            ("burger", (0.21, 0.0)), ("burger", (0.0, -2.6)),
+                                            ("burger", (0.1, 1.0))])
+def test_commands_every_wheel_can_follow_reach_the_robot_unchanged(model, command):
+    opencr, sim = board(model)
+    write(opencr, table.HEARTBEAT, b"\x01")
+    write(opencr, table.CMD_VELOCITY_START, table.encode_velocity_command(*command))
+    assert sim.command == pytest.approx(command)
+
+
+def test_driving_at_full_speed_leaves_no_room_to_turn_and_the_curve_flattens():
+    opencr, sim = board("waffle_pi")
+    write(opencr, table.HEARTBEAT, b"\x01")
+    write(opencr, table.CMD_VELOCITY_START, table.encode_velocity_command(0.26, 0.5))
+    linear, angular = sim.command
+    assert max(wheel_speeds(sim.command, sim.model)) == pytest.approx(WHEEL_LIMIT)
+    assert linear < 0.26 and 0.0 < angular < 0.5
 
 
 def test_read_only_items_and_out_of_range_requests_are_refused_unchanged():

@@ -5,6 +5,8 @@ backed by a `Simulation`: sensor items are refreshed from it before every
 reply, and writes drive it. As the firmware does:
 - cmd_velocity_linear_x (150) and cmd_velocity_angular_z (170), m/s and rad/s x 100,
   set the goal velocity, clamped to the model's limits; the other four are stored only;
+- each wheel is then clamped to the Dynamixel's goal velocity limit (337 x 0.229 rpm),
+  so driving at full speed leaves no room to turn (the curve flattens, as on the robot);
 - the heartbeat (19) must change at least every 0.5 s, or the goal velocity is
   zeroed (and stays zero until the next velocity write);
 - motor_torque_enable (149) = 0 stops the wheels and ignores velocity commands;
@@ -26,6 +28,7 @@ FIRMWARE_VERSION = 5  # the ROS 2 firmware's FIRMWARE_VER
 BAUD_RATE_INDEX = 3  # Dynamixel baud rate index of 1 Mbps
 BATTERY_VOLTAGE = 12.0  # V, a charged 3-cell pack
 BATTERY_EMPTY, BATTERY_FULL = 10.5, 12.3  # V, the firmware's percentage range
+GOAL_VELOCITY_LIMIT = 337  # the firmware's clamp of each wheel's Goal_Velocity, in 0.229 rpm units
 
 
 def _items():
@@ -94,7 +97,7 @@ class FakeOpenCR:
 
     def _drive(self):
         if self.torque_enabled:
-            self.sim.set_command(*self._goal)
+            self.sim.set_command(*driven_velocity(self._goal, self.sim.model))
         else:
             self.sim.stop()
 
@@ -212,3 +215,15 @@ class FakeOpenCR:
 
 def _int32(value: int) -> int:
     return (value + 2 ** 31) % 2 ** 32 - 2 ** 31
+
+
+def driven_velocity(goal, model):
+    """The body velocity the firmware drives for a goal: clamped to the model's limits, as the write
+    callbacks do, then each wheel clamped to the Goal_Velocity limit."""
+    linear = max(-model.max_linear_velocity, min(model.max_linear_velocity, goal[0]))
+    angular = max(-model.max_angular_velocity, min(model.max_angular_velocity, goal[1]))
+    limit = model.wheel_radius * 2.0 * math.pi * GOAL_VELOCITY_LIMIT * table.VELOCITY_UNIT_RPM / 60.0  # m/s
+    half_track = model.wheel_separation / 2.0
+    left = max(-limit, min(limit, linear - angular * half_track))
+    right = max(-limit, min(limit, linear + angular * half_track))
+    return (left + right) / 2.0, (right - left) / (2.0 * half_track)
