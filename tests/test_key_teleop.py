@@ -6,6 +6,7 @@ import xmlrpc.client
 
 import pytest
 from pty_session import PtySession
+from roscore_restart import restart_roscore
 
 from ros_harness import wait_until
 from turtlebot3c_description.models import get_model
@@ -21,6 +22,7 @@ from turtlebot3c_teleop.terminal import key_mode, key_mode_attributes
 
 TWIST = "geometry_msgs/Twist"
 NODE = "/turtlebot3_teleop_keyboard"
+SELECTED = "std_msgs/String"
 
 # --- the key map, limits and ramp -------------------------------------------------------
 
@@ -257,3 +259,27 @@ def test_unknown_model_is_refused_with_the_known_ones_and_terminal_untouched(ros
     assert session.wait_exit() == 2
     assert "unknown TurtleBot3 model 'tank'; known models: burger, waffle, waffle_pi" in session.text()
     assert session.attributes() == session.original
+
+
+def test_after_a_roscore_restart_the_next_key_selects_key_vel_again_and_drives(ros_master, pty_session):
+    """Last here (it restarts the module's master): the key app registers again in process; the mux,
+    restarted by its guard, is back on nav_vel until a key is pressed."""
+    ros_master.launch("turtlebot3c_teleop", "turtlebot3c_teleop.launch")
+    ros_master.wait_for_service("/mux/select", timeout=60)
+    session = start_key_app(ros_master, pty_session)
+    ros_master.probe.call("/mux/select", {"topic": "key_vel"})  # as the snap's command chain does
+    restart_roscore(ros_master)
+    for node in ("/mux", "/velocity_watchdog", NODE):
+        ros_master.wait_for_node(node, timeout=60)
+    probe = ros_master.probe
+    probe.subscribe("/cmd_vel", TWIST)
+    assert probe.wait_for_message("/mux/selected", SELECTED, start=0, timeout=30)["data"] == "nav_vel"
+    wait_until(lambda: "the next key selects key_vel again" in session.text(), 20,
+               lambda: f"the app never said the mux must be selected again:\n{session.text()}")
+    session.type("w")
+    probe.wait_for_message("/mux/selected", SELECTED, start=0, where=lambda m: m["data"] == "key_vel", timeout=30)
+    probe.wait_for_message("/cmd_vel", TWIST, where=lambda m: m["linear"]["x"] > 0, timeout=30)
+    session.type("\x03")
+    session.wait_exit()
+    assert session.attributes() == session.original, "terminal attributes were not restored"
+    assert "stopped (Ctrl-C); zero velocity sent" in session.text()

@@ -34,9 +34,11 @@ PERIOD = 0.5  # s between looks at the master: its restart is noticed within thi
 PARAMETERS_EVERY = 10  # looks between refreshes of the copy of the node's private parameters
 
 
-def rejoin_restarted_masters(period=PERIOD):
-    """Start watching the master for this (initialised) node; returns the started thread."""
-    rejoiner = Rejoiner(MasterQuery(rosgraph.get_master_uri(), rospy.get_name()), rospy.get_name(), period)
+def rejoin_restarted_masters(period=PERIOD, on_rejoined=None):
+    """Start watching the master for this (initialised) node; returns the started thread.
+    `on_rejoined()`, if given, is called (in that thread) once the node is registered with a new master."""
+    rejoiner = Rejoiner(MasterQuery(rosgraph.get_master_uri(), rospy.get_name()), rospy.get_name(), period,
+                        on_rejoined)
     thread = threading.Thread(target=rejoiner.run, name="master-rejoin", daemon=True)
     thread.start()
     return thread
@@ -58,10 +60,11 @@ def registrations():
 
 
 class Rejoiner:
-    def __init__(self, master, node_name, period):
+    def __init__(self, master, node_name, period, on_rejoined=None):
         self.master = master
         self.node_name = node_name
         self.period = period
+        self.on_rejoined = on_rejoined
         self.watch = MasterWatch()
         self.parameters = KeptParameters()
         self.looks = 0
@@ -88,3 +91,5 @@ class Rejoiner:
         for name, data_type_or_uri, kind in registrations():
             manager.reg_added(name, data_type_or_uri, kind)  # retries until the master answers
         rospy.loginfo("%s: registered again with the new ROS master", self.node_name)
+        if self.on_rejoined is not None:
+            self.on_rejoined()
