@@ -266,19 +266,27 @@ def test_after_a_roscore_restart_the_next_key_selects_key_vel_again_and_drives(r
     restarted by its guard, is back on nav_vel until a key is pressed."""
     ros_master.launch("turtlebot3c_teleop", "turtlebot3c_teleop.launch")
     ros_master.wait_for_service("/mux/select", timeout=60)
-    session = start_key_app(ros_master, pty_session)
+    session = start_key_app(ros_master, pty_session, model="waffle")
     ros_master.probe.call("/mux/select", {"topic": "key_vel"})  # as the snap's command chain does
+    session.type("wwwww")  # driving when the master goes
     restart_roscore(ros_master)
     for node in ("/mux", "/velocity_watchdog", NODE):
         ros_master.wait_for_node(node, timeout=60)
     probe = ros_master.probe
     probe.subscribe("/cmd_vel", TWIST)
     assert probe.wait_for_message("/mux/selected", SELECTED, start=0, timeout=30)["data"] == "nav_vel"
-    wait_until(lambda: "the next key selects key_vel again" in session.text(), 20,
+    wait_until(lambda: "stopped; the next key selects key_vel again" in session.text(), 20,
                lambda: f"the app never said the mux must be selected again:\n{session.text()}")
+    start = probe.count("/cmd_vel")
     session.type("w")
     probe.wait_for_message("/mux/selected", SELECTED, start=0, where=lambda m: m["data"] == "key_vel", timeout=30)
-    probe.wait_for_message("/cmd_vel", TWIST, where=lambda m: m["linear"]["x"] > 0, timeout=30)
+    one_step = limits_for_model(get_model("waffle")).linear_step
+    probe.wait_for_message("/cmd_vel", TWIST, start=start, timeout=30,
+                           where=lambda m: m["linear"]["x"] == pytest.approx(one_step, abs=1e-9))
+    reached = probe.count("/cmd_vel")
+    wait_until(lambda: probe.count("/cmd_vel") >= reached + 5, 10, "/cmd_vel stopped")  # the ramp would go on
+    assert max(m["linear"]["x"] for m in probe.messages("/cmd_vel", start)) <= one_step + 1e-9, \
+        "the keys drove on from the speed before the restart"
     session.type("\x03")
     session.wait_exit()
     assert session.attributes() == session.original, "terminal attributes were not restored"
