@@ -13,8 +13,8 @@ moment (when the revolution has been read), but give time_increment a positive s
 from typing import Dict, Iterator, List, NamedTuple, Tuple
 
 from turtlebot3c_bringup import lds01_protocol, lds02_protocol
+from turtlebot3c_bringup.laser_scan import BEAMS
 
-BEAMS = 360
 
 class Scan(NamedTuple):
     ranges: List[float]  # m, 360 beams counter-clockwise from the front
