@@ -118,8 +118,8 @@ def test_a_nodes_registrations_are_read_from_the_masters_system_state():
     ]
     types = [["/rosout", "rosgraph_msgs/Log"], ["/map", "nav_msgs/OccupancyGrid"], ["/scan", "sensor_msgs/LaserScan"]]
     service_uris = {"/recorder/get_loggers": "rosrpc://host:1"}  # the other one did not answer
-    assert node_registrations("/recorder", "http://host:2/", state, types, service_uris) == NodeRegistrations(
+    assert node_registrations("/recorder", "http://host:2/", state, types, service_uris.get) == NodeRegistrations(
         "http://host:2/", publications=[("/rosout", "rosgraph_msgs/Log")],
         subscriptions=[("/scan", "sensor_msgs/LaserScan"), ("/tf_static", "*")],  # nobody publishes it yet
         services=[("/recorder/get_loggers", "rosrpc://host:1")])
-    assert node_registrations("/absent", "http://host:3/", state, types, {}) == NodeRegistrations("http://host:3/")
+    assert node_registrations("/absent", "http://host:3/", state, types, {}.get) == NodeRegistrations("http://host:3/")

@@ -133,20 +133,15 @@ class NodeRegistrations:
         return f"NodeRegistrations({vars(self)})"
 
 
-def node_registrations(node: str, uri: str, system_state, topic_types, service_uris) -> NodeRegistrations:
-    """`node`'s registrations from the master's getSystemState, getTopicTypes ([topic, type] pairs)
-    and the URIs of its services (name -> rosrpc URI, from lookupService)."""
+def node_registrations(node: str, uri: str, system_state, topic_types, service_uri) -> NodeRegistrations:
+    """`node`'s registrations from the master's getSystemState and getTopicTypes ([topic, type]
+    pairs); `service_uri(name)` is a service's rosrpc URI (lookupService), None if it did not answer."""
     publishers, subscribers, services = system_state
     types = dict((topic, data_type) for topic, data_type in topic_types)
 
     def topics_of(groups):
         # "*": any type, as rosbag record subscribes; the master lists no type for a topic nobody publishes
         return [(topic, types.get(topic, "*")) for topic, nodes in groups if node in nodes]
+    service_uris = [(name, service_uri(name)) for name, nodes in services if node in nodes]
     return NodeRegistrations(uri, topics_of(publishers), topics_of(subscribers),
-                             [(name, service_uris[name]) for name in services_of(node, system_state)
-                              if name in service_uris])
-
-
-def services_of(node: str, system_state) -> Iterable[str]:
-    """The names of the services `node` provides, from the master's getSystemState."""
-    return [name for name, nodes in system_state[2] if node in nodes]
+                             [(name, found) for name, found in service_uris if found])
