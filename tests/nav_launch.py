@@ -24,14 +24,20 @@ def write_world_map(folder):
     return yaml_path
 
 
-def launch_navigation(master, world_file=None):
-    """Launch it all on `master`, the simulator in `world_file` if given; navigation always gets
-    turtlebot3_world's map, so whatever `world_file` adds is missing from the map."""
-    map_file = write_world_map(master.workdir / "map")
+def launch_simulated_robot(master, world_file=None):
+    """The simulator (in `world_file` if given, else turtlebot3_world), the burger's bringup
+    (simulation:=true) and the teleop mux on `master`: a robot for the 2dnav launches."""
     world = [f"world:={world_file}"] if world_file else []
     master.launch("turtlebot3c_sim", "turtlebot3_world.launch", "model:=burger", *world)
     master.launch("turtlebot3c_bringup", "turtlebot3c_bringup.launch", "simulation:=true", "model:=burger")
     master.launch("turtlebot3c_teleop", "turtlebot3c_teleop.launch")
+
+
+def launch_navigation(master, world_file=None):
+    """Launch it all on `master`, the simulator in `world_file` if given; navigation always gets
+    turtlebot3_world's map, so whatever `world_file` adds is missing from the map."""
+    map_file = write_world_map(master.workdir / "map")
+    launch_simulated_robot(master, world_file)
     master.launch("turtlebot3c_2dnav", "turtlebot3c_navigation.launch", "model:=burger", f"map_file:={map_file}",
                   f"initial_pose_x:={SPAWN[0]}", f"initial_pose_y:={SPAWN[1]}", f"initial_pose_a:={SPAWN[2]}")
     for node in ("/map_server", "/amcl", "/move_base", "/mux", "/simulator"):
@@ -45,8 +51,8 @@ def pose_stamped(x, y, yaw):
             "pose": {"position": {"x": x, "y": y}, "orientation": {"z": math.sin(yaw / 2), "w": math.cos(yaw / 2)}}}
 
 
-def true_pose(probe):
-    message = probe.wait_for_message("/sim/ground_truth", GROUND_TRUTH, timeout=10)
+def true_pose(probe, timeout=10):
+    message = probe.wait_for_message("/sim/ground_truth", GROUND_TRUTH, timeout=timeout)
     pose = message["pose"]["pose"]
     yaw = 2 * math.atan2(pose["orientation"]["z"], pose["orientation"]["w"])
     return pose["position"]["x"], pose["position"]["y"], yaw

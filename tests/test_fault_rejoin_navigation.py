@@ -11,7 +11,7 @@ import time
 
 import numpy as np
 import pytest
-from nav_launch import GROUND_TRUTH, RESULT, SPAWN, SUCCEEDED, launch_navigation, pose_stamped
+from nav_launch import GROUND_TRUTH, RESULT, SPAWN, SUCCEEDED, launch_navigation, pose_stamped, true_pose
 from real_robot import node_pid
 from roscore_restart import restart_roscore
 
@@ -24,8 +24,7 @@ GOAL_AFTER = (-1.8, -0.5, math.pi)
 
 
 def true_position(probe):
-    position = probe.wait_for_message("/sim/ground_truth", GROUND_TRUTH, timeout=30)["pose"]["pose"]["position"]
-    return position["x"], position["y"]
+    return true_pose(probe, timeout=30)[:2]
 
 
 def localisation_error(probe, estimate):
