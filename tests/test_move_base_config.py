@@ -1,5 +1,6 @@
 """The shipped navigation configuration, as the nodes read it, and the message conversions."""
 import math
+import subprocess
 
 import numpy as np
 import pytest
@@ -25,6 +26,7 @@ def test_shipped_move_base_config_keeps_upstream_tolerances_within_the_model_lim
     assert (config.dwa.xy_goal_tolerance, config.dwa.yaw_goal_tolerance) == (0.05, 0.17)
     upstream_max_vel_x = 0.22 if model_name == "burger" else 0.26
     assert config.dwa.max_vel_x == pytest.approx(min(model.max_linear_velocity, upstream_max_vel_x))
+    assert config.dwa.min_vel_x == pytest.approx(-config.dwa.max_vel_x)  # upstream: it may drive backwards
     assert config.dwa.max_vel_theta <= model.max_angular_velocity
     assert config.dwa.controller_frequency == 20.0  # upstream 10: twice as often reaches goals sooner
     assert (config.nav.planner_patience, config.nav.controller_patience) == (5.0, 15.0)
@@ -39,6 +41,14 @@ def test_speeds_above_the_firmware_limit_are_clamped_and_unrelated_keys_ignored(
     assert config.dwa.max_vel_x == pytest.approx(model.max_linear_velocity)
     assert config.dwa.max_vel_theta == pytest.approx(model.max_angular_velocity)
     assert config.nav.planner_frequency == 2.0
+
+
+@pytest.mark.parametrize("move_forward_only, min_vel_x", [(None, -0.26), ("false", -0.26), ("true", 0.0)])
+def test_move_forward_only_keeps_move_base_from_driving_backwards_as_upstream(ros_env, move_forward_only, min_vel_x):
+    args = ["model:=waffle_pi"] + ([f"move_forward_only:={move_forward_only}"] if move_forward_only else [])
+    dumped = subprocess.run(["roslaunch", "--dump-params", "turtlebot3c_2dnav", "turtlebot3c_navigation.launch", *args],
+                            env=ros_env, capture_output=True, text=True, check=True).stdout
+    assert yaml.safe_load(dumped)["/move_base/DWAPlannerROS/min_vel_x"] == min_vel_x
 
 
 def test_shipped_amcl_config_has_turtlebot3_navigation_values():

@@ -6,6 +6,7 @@ import pytest
 import yaml
 
 from turtlebot3c_2dnav.amcl import AmclParams
+from turtlebot3c_2dnav.dwa import dwa_params_for_model
 from turtlebot3c_2dnav.navigation_loop import ClosedLoop, world_layers
 from turtlebot3c_2dnav.navigation_stack import Localizer, make_filter, make_navigator, pose_error, scan_offset
 from turtlebot3c_description.models import get_model
@@ -19,7 +20,7 @@ def world_with(name, *obstacles):
     return world_from_description(description, name)
 
 
-def closed_loop(world_name="turtlebot3_world", model_name="burger", seed=0, start=None):
+def closed_loop(world_name="turtlebot3_world", model_name="burger", seed=0, start=None, dwa_params=None):
     """Robot at `start` (default: the world's spawn pose), localised there, on a perfect map."""
     world = load_world(world_name)
     layers = world_layers(world)
@@ -27,7 +28,7 @@ def closed_loop(world_name="turtlebot3_world", model_name="burger", seed=0, star
     sim = Simulation(world, model_name, pose=start or world.spawn_pose, seed=seed)
     localizer = Localizer(make_filter(layers, AmclParams(), seed=seed))
     localizer.set_pose(sim.pose, sim.odometry[:3])
-    return ClosedLoop(sim, make_navigator(layers, model), localizer, scan_offset(model))
+    return ClosedLoop(sim, make_navigator(layers, model, dwa_params=dwa_params), localizer, scan_offset(model))
 
 
 def assert_at(pose, goal, xy_tolerance=0.05, yaw_tolerance=0.17):
@@ -99,3 +100,36 @@ def test_wrong_initial_pose_is_corrected_by_global_localization_then_the_goal_is
     assert result.state == "succeeded", result
     assert not result.collided
     assert_at(loop.sim.pose, goal)
+
+
+def drive_recording(loop, goal):
+    """run_to_goal, also returning the robot's (linear speed, heading) at every step."""
+    samples = []
+    loop.obstacle_hook = lambda running: samples.append((running.sim.velocity[0], running.sim.pose[2]))
+    return loop.run_to_goal(goal, timeout=60), samples
+
+
+def test_a_goal_behind_facing_the_robots_way_is_reached_backwards_without_turning_round():
+    start, goal = (-2.0, -0.5, math.pi), (-1.2, -0.5, math.pi)  # 0.8 m behind the robot
+    loop = closed_loop(model_name="waffle_pi", seed=2, start=start)
+    result, samples = drive_recording(loop, goal)
+    assert result.state == "succeeded", result
+    assert not result.collided
+    assert_at(loop.sim.pose, goal)
+    speeds, headings = zip(*samples)
+    assert min(speeds) < -0.2 and max(speeds) < 0.02
+    assert max(pose_error((0.0, 0.0, heading), start)[1] for heading in headings) < 0.3
+
+
+def test_with_move_forward_only_the_same_goal_is_reached_forwards_turning_round_twice():
+    model = get_model("waffle_pi")
+    start, goal = (-2.0, -0.5, math.pi), (-1.2, -0.5, math.pi)
+    loop = closed_loop(model_name="waffle_pi", seed=2, start=start,
+                       dwa_params=dwa_params_for_model(model, min_vel_x=0.0))
+    result, samples = drive_recording(loop, goal)
+    assert result.state == "succeeded", result
+    assert not result.collided
+    assert_at(loop.sim.pose, goal)
+    speeds, headings = zip(*samples)
+    assert min(speeds) > -0.02 and max(speeds) > 0.2
+    assert max(pose_error((0.0, 0.0, heading), start)[1] for heading in headings) > 3.0

@@ -10,6 +10,13 @@ Around that core: the robot turns on the spot first when the plan starts behind 
 near the goal the carrot is the goal and the speed falls with the distance left so it
 stops within xy_goal_tolerance; once there it turns on the spot to the goal heading
 (the position is latched, as upstream's latch_xy_goal_tolerance).
+
+With min_vel_x < 0 (turtlebot3_navigation's default; its move_forward_only sets it to 0)
+the robot may drive a goal's whole plan backwards, chosen from rest when that needs less
+turning on the spot, onto the plan and to the goal heading at its end. Driving backwards
+is driving forwards with the robot's heading turned half a turn, which is how it is
+computed: the checks against the costmap use the circle the footprint sweeps, the same
+either way, and the LIDAR sees all round.
 """
 import math
 from typing import NamedTuple, Optional
@@ -22,7 +29,7 @@ from .geometry import wrap, wrap_angle
 
 class DwaParams(NamedTuple):
     max_vel_x: float = 0.22
-    min_vel_x: float = 0.0
+    min_vel_x: float = -0.22  # m/s; below zero the robot may drive backwards at up to this speed
     max_vel_theta: float = 2.75
     min_in_place_vel_theta: float = 0.4
     acc_lim_x: float = 2.5
@@ -45,12 +52,14 @@ class DwaParams(NamedTuple):
     escape_clearance: float = 0.125  # m, nearest obstacle to the centre on arcs leaving the band
     xy_goal_tolerance: float = 0.05
     yaw_goal_tolerance: float = 0.17
+    reverse_saving: float = 0.5  # rad: backwards only when it spares at least this much turning
 
 
 def dwa_params_for_model(model, **overrides) -> DwaParams:
     """Limits of a turtlebot3c_description RobotModel, with optional overrides."""
     half_width = max(abs(y) for _, y in model.footprint)
-    params = DwaParams(max_vel_x=model.max_linear_velocity, max_vel_theta=model.max_angular_velocity,
+    params = DwaParams(max_vel_x=model.max_linear_velocity, min_vel_x=-model.max_linear_velocity,
+                       max_vel_theta=model.max_angular_velocity,
                        acc_lim_x=model.max_linear_acceleration, acc_lim_theta=model.max_angular_acceleration,
                        escape_clearance=half_width + 0.02)
     return params._replace(**overrides)
@@ -66,21 +75,24 @@ class DwaController:
     def __init__(self, params: Optional[DwaParams] = None):
         self.params = params or DwaParams()
         self.plan: Optional[np.ndarray] = None
+        self._progress_index = 0
+        self.last_trajectory: Optional[np.ndarray] = None
+        self.reset()
+
+    def reset(self):
+        """Forget the goal: the next plan is for a new one."""
         self.goal = None
         self.xy_reached = False
-        self._progress_index = 0
+        self.direction = 0  # +1 forwards, -1 backwards, 0 not chosen yet
         self._last_distance = math.inf
-        self.last_trajectory: Optional[np.ndarray] = None
 
     def set_plan(self, plan, goal):
         """A new plan (N x 2, in the frame of the poses given to compute) towards goal (x, y, yaw)."""
-        new_goal = self.goal is None or any(abs(a - b) > 1e-9 for a, b in zip(goal, self.goal))
+        if self.goal is None or any(abs(a - b) > 1e-9 for a, b in zip(goal, self.goal)):
+            self.reset()
         self.plan = np.asarray(plan, dtype=float)
         self.goal = tuple(goal)
         self._progress_index = 0
-        if new_goal:
-            self.xy_reached = False
-            self._last_distance = math.inf
 
     def compute(self, pose, velocity, costmap) -> Command:
         """Velocity command for robot `pose` (x, y, yaw) moving at `velocity` (v, w)."""
@@ -95,6 +107,37 @@ class DwaController:
             self.xy_reached = True
         if self.xy_reached:
             return self._align(wrap(gyaw - yaw), velocity)
+        if not self.direction:
+            self.direction = self._driving_direction(yaw, velocity[0])
+        # Backwards is forwards for a robot facing the other way.
+        sign = self.direction
+        driving_pose = (x, y, yaw if sign > 0 else wrap(yaw + math.pi))
+        command = self._follow(driving_pose, (sign * velocity[0], velocity[1]), distance, costmap)
+        return command._replace(linear=sign * command.linear)
+
+    def _driving_direction(self, yaw, linear):
+        """+1 to drive the plan forwards, -1 backwards: already moving, the way the robot
+        moves; from rest, backwards when allowed and sparing reverse_saving of turning on the
+        spot, onto the plan now and from its end to the goal heading."""
+        p = self.params
+        if abs(linear) > 0.05:
+            return 1 if linear > 0 else -1
+        if p.min_vel_x >= 0.0:
+            return 1
+        onto_plan = self._plan_direction() - yaw
+        to_goal_heading = self.goal[2] - self._plan_end_direction()
+
+        def turning(heading_offset):
+            return abs(wrap(onto_plan - heading_offset)) + abs(wrap(to_goal_heading - heading_offset))
+        return -1 if turning(math.pi) + p.reverse_saving <= turning(0.0) else 1
+
+    def _top_speed(self):
+        return self.params.max_vel_x if self.direction > 0 else -self.params.min_vel_x
+
+    def _follow(self, pose, velocity, distance, costmap) -> Command:
+        """Follow the plan, driving forwards from `pose` at `velocity`."""
+        p = self.params
+        x, y, yaw = pose
         carrot, near_goal = self._carrot(x, y)
         heading_error = wrap(math.atan2(carrot[1] - y, carrot[0] - x) - yaw)
         if abs(heading_error) > p.rotate_in_place_threshold and abs(velocity[0]) < 0.05:
@@ -117,6 +160,13 @@ class DwaController:
         if np.allclose(here, ahead):
             ahead = plan[-1]
         return math.atan2(ahead[1] - here[1], ahead[0] - here[0])
+
+    def _plan_end_direction(self):
+        """Heading of the plan over its last 0.2 m: the robot's heading when it arrives."""
+        before, end = self.plan[max(0, len(self.plan) - 5)], self.plan[-1]
+        if np.allclose(before, end):
+            return self.goal[2]
+        return math.atan2(end[1] - before[1], end[0] - before[0])
 
     # --- pieces -----------------------------------------------------------------------
 
@@ -157,8 +207,8 @@ class DwaController:
         p = self.params
         period = 1.0 / p.controller_frequency
         v0, w0 = velocity
-        v_low = max(p.min_vel_x, v0 - p.acc_lim_x * period)
-        v_high = min(p.max_vel_x, v0 + p.acc_lim_x * period)
+        v_low = max(0.0, v0 - p.acc_lim_x * period)
+        v_high = min(self._top_speed(), v0 + p.acc_lim_x * period)
         w_low = max(-p.max_vel_theta, w0 - p.acc_lim_theta * period)
         w_high = min(p.max_vel_theta, w0 + p.acc_lim_theta * period)
         vs = np.linspace(v_low, max(v_low, v_high), p.vx_samples)
@@ -199,28 +249,32 @@ class DwaController:
         if near_goal:
             # Slow down with the distance left, so the robot stops inside the tolerance.
             braking = math.sqrt(2.0 * p.approach_deceleration * max(0.0, distance - 0.3 * p.xy_goal_tolerance))
-            v_cap = max(p.min_approach_vel, min(p.max_vel_x, braking))
+            v_cap = max(p.min_approach_vel, min(self._top_speed(), braking))
             keep = v <= v_cap + 1e-9
             if not keep.any():
                 keep = v <= v.min() + 1e-9
             v, w = v[keep], w[keep]
         trajectories = self.rollout(pose, v, w)
         costs = costmap.cost_at(trajectories[..., 0], trajectories[..., 1]).astype(float)
-        worst = costs.max(axis=1)
-        valid = self._safe(trajectories, costs, costmap)
-        if not valid.any():
-            self.last_trajectory = None
-            return Command(0.0, 0.0, "blocked")
         if near_goal:
             # Judge each arc where it passes closest to the goal, sooner being better: judged at
             # its end, an arc fast enough to pass the goal would lose to a crawl that ends on it.
-            to_goal = np.hypot(trajectories[..., 0] - carrot[0], trajectories[..., 1] - carrot[1])
-            closest = np.argmin(to_goal, axis=1)
-            ends = trajectories[np.arange(len(v)), closest, :]
-            time_cost = (closest + 1) * p.sim_granularity * p.approach_time_weight
+            ends, elapsed, reached = _closest_approach(pose, trajectories, carrot, p.sim_granularity)
+            time_cost = elapsed * p.approach_time_weight
+            # The robot stops there: past the goal, beyond one sample of braking room, an arc
+            # leads nowhere the robot goes, so what lies there (a wall behind the goal) is no cost.
+            costs[np.arange(costs.shape[1])[None, :] > reached[:, None] + 1] = 0.0
+            # Nor is the cost of the goal's own cell, which every arc that gets there pays.
+            unavoidable = float(costmap.cost_at(np.array([carrot[0]]), np.array([carrot[1]]))[0])
         else:
             ends = trajectories[:, -1, :]
             time_cost = 0.0
+            unavoidable = 0.0
+        valid = self._safe(trajectories, costs, costmap)
+        worst = np.maximum(costs.max(axis=1) - unavoidable, 0.0)
+        if not valid.any():
+            self.last_trajectory = None
+            return Command(0.0, 0.0, "blocked")
         goal_cost = np.hypot(ends[:, 0] - carrot[0], ends[:, 1] - carrot[1]) + time_cost
         segment = self.plan[self._progress_index:self._progress_index + 80]
         path_cost = np.min(np.hypot(ends[:, 0:1] - segment[None, :, 0], ends[:, 1:2] - segment[None, :, 1]), axis=1)
@@ -233,3 +287,20 @@ class DwaController:
         best = int(np.argmin(score))
         self.last_trajectory = trajectories[best]
         return Command(float(v[best]), float(w[best]), "approach" if near_goal else "follow")
+
+
+def _closest_approach(pose, trajectories, point, step):
+    """Where (S x 3 poses) and when (S seconds) each of the S rolled-out arcs passes closest
+    to `point`, between its samples too (judged only at its samples, a fast arc, whose
+    samples lie further apart, would seem to miss the point by more than a slow one), and
+    the index of the first sample at or past that place (S)."""
+    start = np.broadcast_to(np.asarray(pose, dtype=float), (len(trajectories), 1, 3))
+    poses = np.concatenate([start, trajectories], axis=1)
+    a, b = poses[:, :-1, :], poses[:, 1:, :]
+    chord = b[..., :2] - a[..., :2]
+    length_sq = np.maximum((chord ** 2).sum(axis=-1), 1e-12)
+    along = np.clip(((point[:2] - a[..., :2]) * chord).sum(axis=-1) / length_sq, 0.0, 1.0)
+    nearest = a + along[..., None] * (b - a)
+    segment = np.argmin(np.hypot(nearest[..., 0] - point[0], nearest[..., 1] - point[1]), axis=1)
+    rows = np.arange(len(trajectories))
+    return nearest[rows, segment], (segment + along[rows, segment]) * step, segment

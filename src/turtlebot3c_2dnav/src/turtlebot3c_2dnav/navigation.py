@@ -105,9 +105,7 @@ class Navigator:
         self.plan = None
         self.recoveries_run = []
         self._reset_timers(now)
-        self.controller.xy_reached = False
-        self.controller.goal = None
-        self.controller._last_distance = math.inf
+        self.controller.reset()
 
     def cancel(self, text="goal cancelled"):
         if self.state == ACTIVE:

@@ -116,6 +116,7 @@ def move_base_config(values, model) -> MoveBaseConfig:
     dwa = _override(dwa_params_for_model(model), values.get("DWAPlannerROS") or {})
     dwa = dwa._replace(controller_frequency=float(values.get("controller_frequency", dwa.controller_frequency)),
                        max_vel_x=min(dwa.max_vel_x, model.max_linear_velocity),
+                       min_vel_x=max(dwa.min_vel_x, -model.max_linear_velocity),
                        max_vel_theta=min(dwa.max_vel_theta, model.max_angular_velocity))
     return MoveBaseConfig(
         costmap=_override(costmap_params_for_model(model), values.get("costmap") or {}),
