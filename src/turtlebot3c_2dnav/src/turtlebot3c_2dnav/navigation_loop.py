@@ -18,12 +18,14 @@ from .navigation_stack import Localizer, MapLayers, layers_from_occupied, pose_e
 def world_layers(world, resolution=0.05) -> MapLayers:
     """A map of a simulator world (its rasterisation over the world's bounds).
 
-    The grid is offset by a quarter cell: world walls lie on multiples of the resolution,
-    so with cell edges there too, rounding decides cell by cell whether a wall thickens
-    towards one side or the other, which biases localisation by up to half a cell."""
+    The grid is offset by half a cell, so that cell centres lie on multiples of the
+    resolution, where the worlds' walls do: the cells centred on a wall's surface are
+    occupied, on whichever side the wall faces. With cell edges there instead, every
+    surface would be drawn a fraction of a cell towards the same side, and localisation
+    on the map would be off by that much."""
     xmin, ymin, xmax, ymax = world.bounds
-    xmin -= resolution / 4.0
-    ymin -= resolution / 4.0
+    xmin -= resolution / 2.0
+    ymin -= resolution / 2.0
     width = int(np.ceil((xmax - xmin) / resolution))
     height = int(np.ceil((ymax - ymin) / resolution))
     occupied = world.rasterize(resolution, (xmin, ymin), width, height)
