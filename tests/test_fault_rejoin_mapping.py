@@ -26,14 +26,14 @@ MAPPING_NODES = (SLAM, "/simulator", "/robot_state_publisher")
 
 
 def known_cells(grid):
-    """World coordinates (cell centres, rounded to the cell) of the map's known cells."""
+    """The centres of the map's known cells in world coordinates, in whole millimetres."""
     info = grid["info"]
     data = np.asarray(grid["data"]).reshape(info["height"], info["width"])
     rows, columns = np.nonzero(data != -1)
     origin = info["origin"]["position"]
     resolution = info["resolution"]
-    return set(zip(np.round(origin["x"] / resolution).astype(int) + columns,
-                   np.round(origin["y"] / resolution).astype(int) + rows))
+    return set(zip(np.round((origin["x"] + (columns + 0.5) * resolution) * 1000).astype(int),
+                   np.round((origin["y"] + (rows + 0.5) * resolution) * 1000).astype(int)))
 
 
 @pytest.fixture(scope="module")

@@ -38,8 +38,8 @@ def has_param(master, name):
 
 def common_window(first, second):
     """Both maps' cells over the part of the grid lattice they share (same resolution)."""
-    low1 = np.round(np.array(first.origin[:2]) / first.resolution).astype(int)
-    low2 = np.round(np.array(second.origin[:2]) / second.resolution).astype(int)
+    low1 = np.zeros(2, dtype=int)
+    low2 = np.round((np.array(second.origin[:2]) - first.origin[:2]) / first.resolution).astype(int)
     low = np.maximum(low1, low2)
     high = np.minimum(low1 + (first.width, first.height), low2 + (second.width, second.height))
     return (first.data[low[1] - low1[1]:high[1] - low1[1], low[0] - low1[0]:high[0] - low1[0]],

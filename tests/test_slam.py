@@ -115,6 +115,34 @@ def test_scan_marks_hit_cells_occupied_and_cells_before_them_free():
     assert cell(-0.5, 0.0) == -1  # outside the field of view
 
 
+def occupied_cell_centres_x(occupancy):
+    _, cols = np.nonzero(occupancy.data == 100)
+    return occupancy.origin[0] + (cols + 0.5) * occupancy.resolution
+
+
+def test_a_wall_on_the_lattice_is_drawn_in_the_cells_centred_on_it_when_cells_are_shifted_half_a_cell():
+    centred = LogOddsGrid(0.05, cell_shift=0.5)
+    centred.add_scan(wall_scan(), (0.0, 0.0, 0.0))
+    centres = occupied_cell_centres_x(centred.to_occupancy_map())
+    assert centres.size > 0 and centres == pytest.approx(np.ones(centres.size))
+    # With cell corners on the lattice, the wall at x = 1 is a cell edge: drawn half a cell off.
+    cornered = LogOddsGrid(0.05)
+    cornered.add_scan(wall_scan(), (0.0, 0.0, 0.0))
+    assert np.abs(occupied_cell_centres_x(cornered.to_occupancy_map()) - 1.0).min() == pytest.approx(0.025)
+
+
+def test_the_published_map_has_a_cell_centred_on_the_map_frame_origin():
+    slam = Slam()
+    geometry = ScanGeometry(-math.pi / 4, math.pi / 2 / 179, 180, 0.1, 10.0)
+    angles = -math.pi / 4 + np.arange(180) * math.pi / 2 / 179
+    slam.add_scan(0.0, 1.0 / np.cos(angles), geometry, (0.0, 0.0, 0.0))
+    occupancy = slam.occupancy_map()
+    corner_in_cells = np.array(occupancy.origin[:2]) / occupancy.resolution
+    assert corner_in_cells - np.floor(corner_in_cells) == pytest.approx([0.5, 0.5])
+    centres = occupied_cell_centres_x(occupancy)
+    assert centres.size > 0 and centres == pytest.approx(np.ones(centres.size))
+
+
 def test_taking_back_a_scan_restores_the_grid_exactly():
     grid = LogOddsGrid(0.05)
     first = trace_scan(wall_scan(), (0.0, 0.0, 0.0), 0.05)

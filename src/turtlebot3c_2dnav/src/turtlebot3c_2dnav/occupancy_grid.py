@@ -1,8 +1,9 @@
 """A growable log-odds occupancy grid and the cell updates a scan makes. Pure numpy; no rospy.
 
-Cells live on a fixed lattice: cell (i, j) covers x in [i r, (i+1) r), y in [j r, (j+1) r)
-for resolution r, whatever part of the lattice the array currently holds, so updates
-computed once stay valid when the grid grows. Updates are additive (log-odds and an
+Cells live on a fixed lattice: cell (i, j) covers x in [(i - s) r, (i + 1 - s) r), y in
+[(j - s) r, (j + 1 - s) r) for resolution r and cell shift s (0: cell corners at the map
+frame's origin; 1/2: a cell centred there), whatever part of the lattice the array
+currently holds, so updates computed once stay valid when the grid grows. Updates are additive (log-odds and an
 observation count), so a scan's update can be taken back exactly by applying it with
 sign -1: a rolling local map adds its newest scan and removes its oldest.
 """
@@ -51,9 +52,9 @@ def _unique_cells(cells):
     return _cells_of_keys(np.unique(_cell_keys(cells)))
 
 
-def hit_cells(points, resolution):
+def hit_cells(points, resolution, cell_shift=0.0):
     """CellUpdate-style hits of points (N, 2) in the map frame: cells, position sums within them, counts."""
-    scaled = points / resolution
+    scaled = points / resolution + cell_shift
     cells = np.floor(scaled).astype(np.int64)
     if len(cells) == 0:
         return cells.reshape(0, 2), np.zeros((0, 2)), np.zeros(0)
@@ -64,7 +65,7 @@ def hit_cells(points, resolution):
     return _cells_of_keys(keys), sums, np.bincount(inverse, minlength=len(keys)).astype(np.float64)
 
 
-def trace_scan(rays, pose, resolution):
+def trace_scan(rays, pose, resolution, cell_shift=0.0):
     """The CellUpdate of a scan (ScanRays in the robot frame) taken at `pose` in the map frame.
 
     Rays are sampled every half cell, so no crossed cell is skipped; cells holding an
@@ -73,7 +74,7 @@ def trace_scan(rays, pose, resolution):
     origin = transform_points(pose, rays.origin)[0]
     hits = transform_points(pose, rays.hits)
     ends = np.concatenate((hits, transform_points(pose, rays.free_ends)))
-    hit_cells_, hit_sums, hit_counts = hit_cells(hits, resolution)
+    hit_cells_, hit_sums, hit_counts = hit_cells(hits, resolution, cell_shift)
     if len(ends) == 0:
         return CellUpdate(np.empty((0, 2), np.int64), hit_cells_, hit_sums, hit_counts)
     step = resolution * 0.5
@@ -83,7 +84,7 @@ def trace_scan(rays, pose, resolution):
     starts = np.cumsum(samples) - samples
     fraction = (np.arange(ray_index.size) - np.repeat(starts, samples)) / np.repeat(samples, samples)
     points = origin + (ends[ray_index] - origin) * fraction[:, None]
-    free_cells = _unique_cells(np.floor(points / resolution).astype(np.int64))
+    free_cells = _unique_cells(np.floor(points / resolution + cell_shift).astype(np.int64))
     if len(hit_cells_) and len(free_cells):
         free_cells = free_cells[~np.isin(_cell_keys(free_cells), _cell_keys(hit_cells_))]
     return CellUpdate(free_cells, hit_cells_, hit_sums, hit_counts)
@@ -94,8 +95,9 @@ class LogOddsGrid:
 
     GROWTH = 64  # cells added beyond what is needed, so the array is rarely reallocated
 
-    def __init__(self, resolution, hit_log_odds=0.85, free_log_odds=-0.4):
+    def __init__(self, resolution, hit_log_odds=0.85, free_log_odds=-0.4, cell_shift=0.0):
         self.resolution = float(resolution)
+        self.cell_shift = float(cell_shift)
         self.hit_log_odds = float(hit_log_odds)
         self.free_log_odds = float(free_log_odds)
         self.offset = np.zeros(2, dtype=np.int64)   # lattice (i, j) of array cell [0, 0]
@@ -135,6 +137,10 @@ class LogOddsGrid:
             grown.append(bigger)
         self.log_odds, self.observations, self.hit_sums, self.hit_counts = grown
         self.offset = new_low
+
+    def add_scan(self, rays, pose):
+        """Mark a scan (ScanRays in the robot frame) taken at `pose` in the map frame."""
+        self.apply(trace_scan(rays, pose, self.resolution, self.cell_shift))
 
     def apply(self, update, sign=1):
         """Add (sign 1) or take back (sign -1) a scan's CellUpdate."""
@@ -182,8 +188,7 @@ class LogOddsGrid:
         """The observed part of the grid as an OccupancyMap with 100 / 0 / -1 cells (as gmapping publishes)."""
         observed = self.observations > 0
         if not observed.any():
-            return OccupancyMap(np.full((1, 1), -1, dtype=np.int8), self.resolution,
-                                (float(self.offset[0]) * self.resolution, float(self.offset[1]) * self.resolution, 0.0))
+            return OccupancyMap(np.full((1, 1), -1, dtype=np.int8), self.resolution, self._corner(self.offset) + (0.0,))
         rows = np.flatnonzero(observed.any(axis=1))
         cols = np.flatnonzero(observed.any(axis=0))
         r0, r1 = max(rows[0] - margin, 0), min(rows[-1] + margin + 1, observed.shape[0])
@@ -193,8 +198,11 @@ class LogOddsGrid:
         seen = observed[r0:r1, c0:c1]
         cells[seen & (log_odds >= _logit(occupied_probability))] = 100
         cells[seen & (log_odds <= _logit(free_probability))] = 0
-        origin = ((self.offset[0] + c0) * self.resolution, (self.offset[1] + r0) * self.resolution, 0.0)
-        return OccupancyMap(cells, self.resolution, (float(origin[0]), float(origin[1]), 0.0))
+        return OccupancyMap(cells, self.resolution, self._corner(self.offset + (c0, r0)) + (0.0,))
+
+    def _corner(self, cell):
+        """(x, y) of the lower corner of lattice cell (i, j)."""
+        return tuple(float((index - self.cell_shift) * self.resolution) for index in cell)
 
 
 def _logit(probability):

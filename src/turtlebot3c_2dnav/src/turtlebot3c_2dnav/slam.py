@@ -118,7 +118,7 @@ class MapRebuild:
 
     def run(self):
         for rays, pose in self.keyframes:
-            self.grid.apply(trace_scan(rays, pose, self.grid.resolution))
+            self.grid.add_scan(rays, pose)
         return self.grid
 
 
@@ -138,7 +138,7 @@ class Slam:
         self.keyframes = []
         self.local_grid = self._new_grid(self.config.match_resolution)
         self.local_updates = collections.deque()
-        self.global_grid = self._new_grid()
+        self.global_grid = self._new_map_grid()
         self._global_dirty = False
         self._optimizations = 0
         self._local_version = 0
@@ -155,6 +155,15 @@ class Slam:
 
     def _new_grid(self, resolution=None):
         return LogOddsGrid(resolution or self.config.resolution, self.config.hit_log_odds, self.config.free_log_odds)
+
+    def _new_map_grid(self):
+        """The published map's grid, a cell centred on the map frame's origin: walls that lie on
+        a lattice of the resolution from there (as the simulated worlds' do from their spawn
+        poses) are then drawn in the cells centred on them. With cell corners there instead,
+        which cell a wall's hits fall in is decided by their noise, and every such wall is drawn
+        a fraction of a cell to the same side. Elsewhere the choice makes no difference."""
+        return LogOddsGrid(self.config.resolution, self.config.hit_log_odds, self.config.free_log_odds,
+                           cell_shift=0.5)
 
     # --- per scan -------------------------------------------------------------------------
 
@@ -240,7 +249,7 @@ class Slam:
         if len(self.local_updates) > self.config.local_map_keyframes:
             self.local_grid.apply(self.local_updates.popleft()[1], sign=-1)
         if not self._global_dirty:
-            self.global_grid.apply(trace_scan(rays, self.pose, self.config.resolution))
+            self.global_grid.add_scan(rays, self.pose)
         self._local_version += 1
         self.map_version += 1
         if index - self._last_loop_attempt >= self.config.loop_attempt_every:
@@ -283,7 +292,7 @@ class Slam:
         if not self._global_dirty:
             return None
         keyframes = [(keyframe.rays, tuple(self.graph.poses[index])) for index, keyframe in enumerate(self.keyframes)]
-        return MapRebuild(self._new_grid(), keyframes, self._optimizations)
+        return MapRebuild(self._new_map_grid(), keyframes, self._optimizations)
 
     def adopt(self, rebuild):
         """Take a finished MapRebuild as the map (adding keyframes made since); False if a new loop
@@ -291,8 +300,7 @@ class Slam:
         if not self._global_dirty or rebuild.optimizations != self._optimizations:
             return False
         for index in range(len(rebuild.keyframes), len(self.keyframes)):
-            rebuild.grid.apply(trace_scan(self.keyframes[index].rays, tuple(self.graph.poses[index]),
-                                          self.config.resolution))
+            rebuild.grid.add_scan(self.keyframes[index].rays, tuple(self.graph.poses[index]))
         self.global_grid = rebuild.grid
         self._global_dirty = False
         return True
