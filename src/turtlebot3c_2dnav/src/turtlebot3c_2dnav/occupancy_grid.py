@@ -3,9 +3,10 @@
 Cells live on a fixed lattice: cell (i, j) covers x in [(i - s) r, (i + 1 - s) r), y in
 [(j - s) r, (j + 1 - s) r) for resolution r and cell shift s (0: cell corners at the map
 frame's origin; 1/2: a cell centred there), whatever part of the lattice the array
-currently holds, so updates computed once stay valid when the grid grows. Updates are additive (log-odds and an
-observation count), so a scan's update can be taken back exactly by applying it with
-sign -1: a rolling local map adds its newest scan and removes its oldest.
+currently holds, so updates computed once stay valid when the grid grows. Updates are
+additive (log-odds and an observation count), so a scan's update can be taken back
+exactly by applying it with sign -1: a rolling local map adds its newest scan and
+removes its oldest.
 """
 import math
 
