@@ -133,7 +133,6 @@ class Keyframe:
 class Slam:
     def __init__(self, config=None):
         self.config = config or SlamConfig()
-        resolution = self.config.resolution
         self.graph = PoseGraph()
         self.keyframes = []
         self.local_grid = self._new_grid(self.config.match_resolution)
@@ -151,10 +150,9 @@ class Slam:
         self._last_loop_attempt = -(10 ** 9)
         self.loop_closures = []    # (old keyframe, new keyframe, score)
         self.poor_matches = 0
-        self._resolution = resolution
 
-    def _new_grid(self, resolution=None):
-        return LogOddsGrid(resolution or self.config.resolution, self.config.hit_log_odds, self.config.free_log_odds)
+    def _new_grid(self, resolution, cell_shift=0.0):
+        return LogOddsGrid(resolution, self.config.hit_log_odds, self.config.free_log_odds, cell_shift)
 
     def _new_map_grid(self):
         """The published map's grid, a cell centred on the map frame's origin: walls that lie on
@@ -162,8 +160,7 @@ class Slam:
         poses) are then drawn in the cells centred on them. With cell corners there instead,
         which cell a wall's hits fall in is decided by their noise, and every such wall is drawn
         a fraction of a cell to the same side. Elsewhere the choice makes no difference."""
-        return LogOddsGrid(self.config.resolution, self.config.hit_log_odds, self.config.free_log_odds,
-                           cell_shift=0.5)
+        return self._new_grid(self.config.resolution, cell_shift=0.5)
 
     # --- per scan -------------------------------------------------------------------------
 
