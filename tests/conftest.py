@@ -1,12 +1,12 @@
 """Fixtures shared by every test: the built workspace's environment and a roscore per module."""
 import pytest
 
-import ros_harness
+from testkit import ros_harness
 
 
 @pytest.fixture(scope="session")
 def ros_env():
-    """Environment of the installed workspace (scripts/build's install spaces)."""
+    """Environment of the installed workspace (tools/build's install spaces)."""
     return ros_harness.install_space_environment()
 
 

@@ -14,4 +14,4 @@ if [ ! -r "$map_file" ]; then
   exit 0
 fi
 
-exec model_launcher.sh turtlebot3c_2dnav turtlebot3c_navigation.launch "map_file:=$map_file"
+exec model_launcher.sh turtlebot3c_navigation turtlebot3c_navigation.launch "map_file:=$map_file"

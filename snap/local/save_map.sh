@@ -13,7 +13,7 @@ rm -rf -- "$map_dir"/.saving.*
 work="$(mktemp -d "$map_dir/.saving.XXXXXX")"
 trap 'rm -rf -- "$work"' EXIT
 
-if ! rosrun turtlebot3c_2dnav map_saver -f "$work/map"; then
+if ! rosrun turtlebot3c_maps map_saver -f "$work/map"; then
   echo "save_map: the map could not be saved (see the map_saver message above)" >&2
   exit 1
 fi

@@ -10,12 +10,12 @@ its new baseline, so it resumes from the last pose without a jump.
 import time
 from typing import NamedTuple, Optional
 
-from turtlebot3c_bringup.backoff import Backoff
 from turtlebot3c_bringup.opencr_control_table import encode_velocity_command
 from turtlebot3c_bringup.opencr_link import LinkError, LinkLost
 from turtlebot3c_bringup.opencr_sensors import SensorState, check_device, decode_sensor_block
 from turtlebot3c_bringup.velocity_command import clamp_to_model
 from turtlebot3c_bringup.wheel_odometry import Snapshot, WheelOdometry
+from turtlebot3c_common.backoff import Backoff
 from turtlebot3c_description.models import RobotModel
 
 HEARTBEAT_PERIOD = 0.1  # s; the firmware stops the motors after 0.5 s without a heartbeat change

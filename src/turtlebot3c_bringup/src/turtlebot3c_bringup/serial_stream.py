@@ -3,8 +3,8 @@ import time
 
 import serial
 
-from turtlebot3c_bringup.backoff import Backoff
 from turtlebot3c_bringup.serial_errors import DEVICE_ERRORS
+from turtlebot3c_common.backoff import Backoff
 
 
 class SerialStream:

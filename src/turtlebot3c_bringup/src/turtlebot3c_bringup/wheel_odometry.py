@@ -9,6 +9,7 @@ import math
 from typing import NamedTuple, Optional
 
 from turtlebot3c_bringup.opencr_control_table import TICK_TO_RAD
+from turtlebot3c_common.se2 import wrap_angle
 
 INT32_RANGE = 1 << 32
 
@@ -23,10 +24,6 @@ def tick_delta(current: int, previous: int) -> int:
     """Signed change of an int32 encoder counter, across its wrap-around."""
     delta = (current - previous) % INT32_RANGE
     return delta - INT32_RANGE if delta >= INT32_RANGE // 2 else delta
-
-
-def normalize_angle(angle: float) -> float:
-    return math.atan2(math.sin(angle), math.cos(angle))
 
 
 class Snapshot(NamedTuple):
@@ -106,13 +103,13 @@ class WheelOdometry:
             return False
         distance = self.wheel_radius * (left + right) / 2.0
         if self.use_imu_yaw and imu_yaw is not None and previous_yaw is not None:
-            turn = normalize_angle(imu_yaw - previous_yaw)
+            turn = wrap_angle(imu_yaw - previous_yaw)
         else:
             turn = self.wheel_radius * (right - left) / self.wheel_separation
         x, y, yaw = self.pose
         heading = yaw + turn / 2.0
         self.pose = Pose2D(x + distance * math.cos(heading), y + distance * math.sin(heading),
-                           normalize_angle(yaw + turn))
+                           wrap_angle(yaw + turn))
         self.wheel_positions = (self.wheel_positions[0] + left, self.wheel_positions[1] + right)
         self.linear = distance / dt
         self.angular = turn / dt

@@ -19,6 +19,7 @@ from typing import NamedTuple, Tuple
 
 import numpy as np
 
+from turtlebot3c_common.se2 import wrap_angle
 from turtlebot3c_description.models import get_model
 
 from .world import World
@@ -85,10 +86,6 @@ class Imu(NamedTuple):
         return (math.cos(half), 0.0, 0.0, math.sin(half))
 
 
-def normalize_angle(angle: float) -> float:
-    return math.atan2(math.sin(angle), math.cos(angle))
-
-
 def _ramp(current: float, target: float, max_acceleration: float, dt: float) -> Tuple[float, float]:
     """Velocity after moving towards `target` at no more than max_acceleration for dt, and its exact integral."""
     gap = target - current
@@ -122,7 +119,7 @@ class Simulation:
         self._scan_random = np.random.default_rng(streams[1])
         self._imu_random = np.random.default_rng(streams[2])
         x, y, yaw = world.spawn_pose if pose is None else pose
-        self._x, self._y, self._yaw = float(x), float(y), normalize_angle(float(yaw))
+        self._x, self._y, self._yaw = float(x), float(y), wrap_angle(float(yaw))
         self._footprint = np.asarray(self.model.footprint, float)
         self._footprint_radius = float(np.hypot(self._footprint[:, 0], self._footprint[:, 1]).max())
         self._free_motion = 0.0  # how far the footprint may still move without any obstacle check
@@ -210,7 +207,7 @@ class Simulation:
         return free
 
     def _place(self, pose, contact):
-        self._x, self._y, self._yaw = pose[0], pose[1], normalize_angle(pose[2])
+        self._x, self._y, self._yaw = pose[0], pose[1], wrap_angle(pose[2])
         if contact and not self.in_contact:
             self.collisions += 1
         if contact:
@@ -221,7 +218,7 @@ class Simulation:
         """Move the robot (ground truth only; odometry and encoders do not notice) and stop it."""
         if self.footprint_collides(x, y, yaw):
             raise ValueError(f"pose ({x:.3f}, {y:.3f}, {yaw:.3f}) overlaps an obstacle in {self.world.name}")
-        self._x, self._y, self._yaw = float(x), float(y), normalize_angle(float(yaw))
+        self._x, self._y, self._yaw = float(x), float(y), wrap_angle(float(yaw))
         self._linear = self._angular = 0.0
         self._free_motion = 0.0
         self.in_contact = False
@@ -260,10 +257,10 @@ class Simulation:
             0.0, noise.odom_angular_drift * math.sqrt(abs(rotation) + abs(distance))) \
             if noise.odom_angular_drift and (rotation or distance) else 0.0
         imu_rotation = rotation + heading_error
-        self._imu_yaw = normalize_angle(self._imu_yaw + imu_rotation)
+        self._imu_yaw = wrap_angle(self._imu_yaw + imu_rotation)
         odom_distance = (measured[0] + measured[1]) / 2.0
         x, y, yaw = _arc(*self._odom, odom_distance, imu_rotation)
-        self._odom = [x, y, normalize_angle(yaw)]
+        self._odom = [x, y, wrap_angle(yaw)]
         self._odom_velocity = (odom_distance / dt, imu_rotation / dt)
 
     # --- state ---------------------------------------------------------------------

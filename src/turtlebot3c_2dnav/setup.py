@@ -1,4 +1,0 @@
-from catkin_pkg.python_setup import generate_distutils_setup
-from setuptools import setup
-
-setup(**generate_distutils_setup(packages=["turtlebot3c_2dnav"], package_dir={"": "src"}))

@@ -1,0 +1,27 @@
+"""Message fields to and from plain values: planar poses (x, y, yaw) and covariance matrices.
+
+Attribute reads only, no ROS import: rospy's messages (the nodes) and rosbags' (offline
+re-mapping) serve alike, and so does any test double.
+"""
+from .se2 import quaternion_to_yaw
+
+
+def pose_from_transform(transform):
+    """(x, y, yaw) of a geometry_msgs/Transform (its 2-D part)."""
+    t, q = transform.translation, transform.rotation
+    return (float(t.x), float(t.y), quaternion_to_yaw(q.x, q.y, q.z, q.w))
+
+
+def pose_from_msg(pose):
+    """(x, y, yaw) of a geometry_msgs/Pose."""
+    p, q = pose.position, pose.orientation
+    return (float(p.x), float(p.y), quaternion_to_yaw(q.x, q.y, q.z, q.w))
+
+
+def covariance(variances):
+    """The row-major square matrix with `variances` on its diagonal, as ROS messages carry covariances."""
+    size = len(variances)
+    matrix = [0.0] * size * size
+    for index, value in enumerate(variances):
+        matrix[index * size + index] = value
+    return matrix

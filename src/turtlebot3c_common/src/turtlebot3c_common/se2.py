@@ -1,0 +1,56 @@
+"""Planar poses (x, y, yaw): angle wrapping, composition, quaternions. The one copy of this maths.
+
+Poses are plain (x, y, yaw) tuples. `wrap_angle` also takes numpy arrays, so the particle
+filter and the pose graph wrap thousands of angles at once with it.
+"""
+import math
+
+import numpy as np
+
+
+def wrap_angle(angle):
+    """The same angle(s) in [-pi, pi): a float, or a numpy array element-wise."""
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def compose(a, b):
+    """Pose b, given in a's frame, expressed in a's parent frame (a ⊕ b)."""
+    ax, ay, ayaw = a
+    bx, by, byaw = b
+    c, s = math.cos(ayaw), math.sin(ayaw)
+    return (ax + c * bx - s * by, ay + s * bx + c * by, wrap_angle(ayaw + byaw))
+
+
+def inverse(a):
+    """The pose whose composition with a is the identity (a⁻¹)."""
+    ax, ay, ayaw = a
+    c, s = math.cos(ayaw), math.sin(ayaw)
+    return (-c * ax - s * ay, s * ax - c * ay, wrap_angle(-ayaw))
+
+
+def relative(a, b):
+    """Pose b seen from pose a (a⁻¹ ⊕ b)."""
+    return compose(inverse(a), b)
+
+
+def transform_points(pose, points):
+    """Points (N, 2) given in the frame at `pose`, expressed in that pose's parent frame."""
+    x, y, yaw = pose
+    c, s = math.cos(yaw), math.sin(yaw)
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    return np.column_stack((x + c * points[:, 0] - s * points[:, 1], y + s * points[:, 0] + c * points[:, 1]))
+
+
+def distance(a, b):
+    """Distance between the positions of two poses (or points)."""
+    return math.hypot(a[0] - b[0], a[1] - b[1])
+
+
+def yaw_to_quaternion(yaw):
+    """(x, y, z, w) of a rotation by yaw about z."""
+    return (0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))
+
+
+def quaternion_to_yaw(x, y, z, w):
+    """Yaw of a quaternion (the rotation about z; roll and pitch ignored)."""
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))

@@ -1,0 +1,379 @@
+"""Adaptive Monte Carlo localisation: a particle filter over (x, y, yaw) in the map frame.
+
+- motion: the odometry motion model for a differential drive (rot1, trans, rot2 with
+  noise alpha1..alpha4, Probabilistic Robotics §5.4), applied once the robot has moved
+  update_min_d or turned update_min_a since the last filter update, as ROS amcl does;
+- sensor: the likelihood-field model (likelihood_field.py) on a subset of the beams;
+- resampling: low-variance, with the particle count chosen by KLD sampling (Fox 2003)
+  between min_particles and max_particles;
+- recovery: random particles in free space when the short-term average likelihood falls
+  below the long-term one (recovery_alpha_slow/fast, Augmented MCL), and a global
+  relocalisation that spreads max_particles over the whole free space on request.
+"""
+import math
+from typing import NamedTuple, Optional, Tuple
+
+import numpy as np
+
+from turtlebot3c_common.se2 import wrap_angle
+
+from .grid_info import GridInfo
+from .likelihood_field import LikelihoodField
+
+
+class AmclParams(NamedTuple):
+    min_particles: int = 500
+    max_particles: int = 3000
+    kld_err: float = 0.02
+    kld_z: float = 0.99
+    bin_size_xy: float = 0.5
+    bin_size_yaw: float = math.radians(10.0)
+    update_min_d: float = 0.20
+    update_min_a: float = 0.20
+    resample_interval: int = 1
+    recovery_alpha_slow: float = 0.001
+    recovery_alpha_fast: float = 0.1
+    odom_alpha1: float = 0.1  # rotation noise from rotation
+    odom_alpha2: float = 0.1  # rotation noise from translation
+    odom_alpha3: float = 0.1  # translation noise from translation
+    odom_alpha4: float = 0.1  # translation noise from rotation
+    laser_max_beams: int = 180
+    laser_min_range: float = -1.0  # <= 0: use the scan's own range_min
+    laser_max_range: float = 3.5
+    laser_z_hit: float = 0.5
+    laser_z_rand: float = 0.5
+    laser_sigma_hit: float = 0.2
+    laser_likelihood_max_dist: float = 2.0
+    # Beams are not independent: scaling the summed log-likelihood down keeps the filter
+    # from collapsing onto one hypothesis after one scan (1.0 is the plain product of
+    # beams). While the cloud is spread (several places, e.g. after a global
+    # relocalisation in a symmetric world) the flatter scale keeps every hypothesis alive
+    # until the robot sees what tells them apart; once it has one place, the sharper one
+    # gives the accuracy.
+    likelihood_scale: float = 1.0
+    likelihood_scale_spread: float = 0.1
+    converged_spread: float = 0.3  # m, position standard deviation of the main cluster
+    converged_share: float = 0.9  # of the weight in the main cluster
+    # Lost: when, for lost_updates filter updates in a row, fewer than lost_fit of the beams
+    # end within lost_fit_distance of an obstacle seen from the estimate, the filter starts
+    # a global relocalisation by itself (a wrong initial pose, a kidnapped robot). 0: never.
+    lost_fit_distance: float = 0.2
+    lost_fit: float = 0.4
+    lost_updates: int = 8
+    initial_cov_xx: float = 0.5 * 0.5
+    initial_cov_yy: float = 0.5 * 0.5
+    initial_cov_aa: float = (math.pi / 12.0) ** 2
+
+
+def params_from_dict(values) -> AmclParams:
+    """AmclParams from a mapping (e.g. ROS parameters); unknown keys raise ValueError."""
+    unknown = set(values) - set(AmclParams._fields)
+    if unknown:
+        raise ValueError("unknown amcl parameters: {}; known: {}".format(
+            ", ".join(sorted(unknown)), ", ".join(AmclParams._fields)))
+    defaults = AmclParams()
+    converted = {key: type(getattr(defaults, key))(value) for key, value in values.items()}
+    return defaults._replace(**converted)
+
+
+def kld_particle_count(bins: int, error: float, z: float) -> float:
+    """Particles needed so that the KL divergence to the true posterior stays below
+    `error` with probability given by the normal quantile `z` (Fox 2003, eq. 15)."""
+    if bins <= 1:
+        return 1.0
+    k = bins - 1
+    a = 2.0 / (9.0 * k)
+    return k / (2.0 * error) * (1.0 - a + math.sqrt(a) * z) ** 3
+
+
+def _normal_quantile(p: float) -> float:
+    """Inverse of the standard normal CDF (Acklam's rational approximation, |error| < 1e-8)."""
+    a = (-3.969683028665376e01, 2.209460984245205e02, -2.759285104469687e02,
+         1.383577518672690e02, -3.066479806614716e01, 2.506628277459239e00)
+    b = (-5.447609879822406e01, 1.615858368580409e02, -1.556989798598866e02,
+         6.680131188771972e01, -1.328068155288572e01)
+    c = (-7.784894002430293e-03, -3.223964580411365e-01, -2.400758277161838e00,
+         -2.549732539343734e00, 4.374664141464968e00, 2.938163982698783e00)
+    d = (7.784695709041462e-03, 3.224671290700398e-01, 2.445134137142996e00, 3.754408661907416e00)
+    if p < 0.02425:
+        q = math.sqrt(-2.0 * math.log(p))
+        return (((((c[0] * q + c[1]) * q + c[2]) * q + c[3]) * q + c[4]) * q + c[5]) / \
+            ((((d[0] * q + d[1]) * q + d[2]) * q + d[3]) * q + 1.0)
+    if p > 1.0 - 0.02425:
+        return -_normal_quantile(1.0 - p)
+    q = p - 0.5
+    r = q * q
+    return (((((a[0] * r + a[1]) * r + a[2]) * r + a[3]) * r + a[4]) * r + a[5]) * q / \
+        (((((b[0] * r + b[1]) * r + b[2]) * r + b[3]) * r + b[4]) * r + 1.0)
+
+
+class Estimate(NamedTuple):
+    pose: Tuple[float, float, float]
+    covariance: np.ndarray  # 3 x 3 over (x, y, yaw)
+    share: float = 1.0  # of the particle weight in the cluster the pose comes from
+
+
+class ParticleFilter:
+    def __init__(self, occupied, info: GridInfo, free=None, params: Optional[AmclParams] = None, seed=None):
+        """`occupied` and `free` are bool grids over `info` (free defaults to not occupied)."""
+        params = params or AmclParams()
+        self.params = params
+        self.info = info
+        self.rng = np.random.RandomState(seed)
+        self.field = LikelihoodField(
+            occupied, info, max_distance=params.laser_likelihood_max_dist, sigma_hit=params.laser_sigma_hit,
+            z_hit=params.laser_z_hit, z_rand=params.laser_z_rand, max_range=params.laser_max_range)
+        free = ~np.asarray(occupied, dtype=bool) if free is None else np.asarray(free, dtype=bool)
+        rows, cols = np.nonzero(free)
+        if rows.size == 0:
+            raise ValueError("the map has no free cell to localise in")
+        self._free_x, self._free_y = info.cell_to_world(rows, cols)
+        self._kld_z = _normal_quantile(params.kld_z)
+        self.particles = np.zeros((0, 3))
+        self.weights = np.zeros(0)
+        self.last_odom: Optional[Tuple[float, float, float]] = None
+        self._force_update = False
+        self._updates = 0
+        self._w_slow = 0.0
+        self._w_fast = 0.0
+        self.estimate: Optional[Estimate] = None
+        self.fit = 1.0  # share of beams that fit the map from the estimate, last update
+        self._lost_count = 0
+        self.relocalizations = 0  # global relocalisations started because the robot was lost
+
+    @property
+    def initialized(self) -> bool:
+        return self.particles.shape[0] > 0
+
+    # --- initialisation ---------------------------------------------------------------
+
+    def set_pose(self, pose, covariance=None):
+        """Gaussian cloud of max_particles around `pose` (e.g. RViz's 2D Pose Estimate)."""
+        p = self.params
+        cov = np.diag([p.initial_cov_xx, p.initial_cov_yy, p.initial_cov_aa]) if covariance is None \
+            else np.asarray(covariance, dtype=float)
+        count = p.max_particles
+        samples = self.rng.multivariate_normal(np.zeros(3), cov, size=count)
+        samples += np.asarray(pose, dtype=float)
+        samples[:, 2] = wrap_angle(samples[:, 2])
+        self._reset(samples)
+        self.estimate = Estimate(tuple(float(v) for v in pose), cov, 1.0)
+
+    def global_localization(self):
+        """Spread max_particles uniformly over free space with uniform headings."""
+        count = self.params.max_particles
+        chosen = self.rng.randint(0, self._free_x.size, size=count)
+        self._reset(self._random_free_poses(chosen))
+        self.estimate = None
+
+    def _random_free_poses(self, chosen):
+        res = self.info.resolution
+        x = self._free_x[chosen] + self.rng.uniform(-res / 2, res / 2, chosen.size)
+        y = self._free_y[chosen] + self.rng.uniform(-res / 2, res / 2, chosen.size)
+        yaw = self.rng.uniform(-math.pi, math.pi, chosen.size)
+        return np.column_stack([x, y, yaw])
+
+    def _reset(self, particles):
+        self._lost_count = 0
+        self.particles = particles
+        self.weights = np.full(particles.shape[0], 1.0 / particles.shape[0])
+        self._force_update = True
+        self._w_slow = self._w_fast = 0.0
+
+    # --- the filter -------------------------------------------------------------------
+
+    def moved_enough(self, odom) -> bool:
+        if self.last_odom is None:
+            return False
+        dx, dy = odom[0] - self.last_odom[0], odom[1] - self.last_odom[1]
+        return (math.hypot(dx, dy) >= self.params.update_min_d
+                or abs(wrap_angle(odom[2] - self.last_odom[2])) >= self.params.update_min_a)
+
+    def update(self, odom, ranges, angles, range_min=0.0, sensor_offset=(0.0, 0.0, 0.0)) -> bool:
+        """Feed one scan and the odometry pose at its time. Returns True when the filter ran
+        (moved enough since the last run, or a new initial pose / relocalisation is pending)."""
+        if not self.initialized:
+            return False
+        if self.last_odom is None:
+            self.last_odom = tuple(odom)
+            self._force_update = True
+        if not (self._force_update or self.moved_enough(odom)):
+            return False
+        self.apply_motion(self.last_odom, odom)
+        self.last_odom = tuple(odom)
+        self._force_update = False
+        self.apply_scan(ranges, angles, range_min, sensor_offset)
+        self._updates += 1
+        if self._updates % max(1, self.params.resample_interval) == 0:
+            self.resample()
+        if self._lost(ranges, angles, range_min, sensor_offset):
+            self.global_localization()
+            self.relocalizations += 1
+        return True
+
+    def _lost(self, ranges, angles, range_min, sensor_offset) -> bool:
+        p = self.params
+        if p.lost_updates <= 0 or self.estimate is None:
+            return False
+        ranges, angles = self.select_beams(ranges, angles, range_min)
+        if ranges.size == 0:
+            return False
+        distances = self.field.end_point_distances(self.estimate.pose, ranges, angles, sensor_offset)
+        self.fit = float((distances < p.lost_fit_distance).mean())
+        self._lost_count = self._lost_count + 1 if self.fit < p.lost_fit else 0
+        return self._lost_count >= p.lost_updates
+
+    def apply_motion(self, odom_from, odom_to):
+        """Move every particle by the odometry increment, with sampled noise."""
+        p = self.params
+        dx, dy = odom_to[0] - odom_from[0], odom_to[1] - odom_from[1]
+        trans = math.hypot(dx, dy)
+        rot1 = 0.0 if trans < 0.01 else wrap_angle(math.atan2(dy, dx) - odom_from[2])
+        rot2 = wrap_angle(odom_to[2] - odom_from[2] - rot1)
+        # Driving backwards is not a half turn: noise follows the smaller angle.
+        rot1_noise = min(abs(rot1), abs(wrap_angle(rot1 - math.pi)))
+        rot2_noise = min(abs(rot2), abs(wrap_angle(rot2 - math.pi)))
+        n = self.particles.shape[0]
+        normal = self.rng.normal
+        rot1_hat = rot1 - normal(0.0, math.sqrt(p.odom_alpha1 * rot1_noise ** 2 + p.odom_alpha2 * trans ** 2), n)
+        trans_hat = trans - normal(
+            0.0, math.sqrt(p.odom_alpha3 * trans ** 2 + p.odom_alpha4 * (rot1_noise ** 2 + rot2_noise ** 2)), n)
+        rot2_hat = rot2 - normal(0.0, math.sqrt(p.odom_alpha1 * rot2_noise ** 2 + p.odom_alpha2 * trans ** 2), n)
+        heading = self.particles[:, 2] + rot1_hat
+        self.particles[:, 0] += trans_hat * np.cos(heading)
+        self.particles[:, 1] += trans_hat * np.sin(heading)
+        self.particles[:, 2] = wrap_angle(heading + rot2_hat)
+
+    def select_beams(self, ranges, angles, range_min):
+        """Valid beams (finite, within limits), evenly thinned to laser_max_beams."""
+        p = self.params
+        ranges = np.asarray(ranges, dtype=float)
+        angles = np.asarray(angles, dtype=float)
+        low = p.laser_min_range if p.laser_min_range > 0 else range_min
+        valid = np.isfinite(ranges) & (ranges > low) & (ranges < p.laser_max_range)
+        ranges, angles = ranges[valid], angles[valid]
+        if ranges.size > p.laser_max_beams > 0:
+            pick = np.linspace(0, ranges.size - 1, p.laser_max_beams).round().astype(int)
+            ranges, angles = ranges[pick], angles[pick]
+        return ranges, angles
+
+    def apply_scan(self, ranges, angles, range_min=0.0, sensor_offset=(0.0, 0.0, 0.0)):
+        """Weight particles by the scan; update the estimate and the recovery averages."""
+        ranges, angles = self.select_beams(ranges, angles, range_min)
+        if ranges.size == 0:
+            return
+        converged = self.converged()
+        scale = self.params.likelihood_scale if converged else self.params.likelihood_scale_spread
+        log_w = self.field.log_likelihood(self.particles, ranges, angles, sensor_offset) * scale
+        log_w += np.log(np.maximum(self.weights, 1e-300))
+        peak = log_w.max()
+        weights = np.exp(log_w - peak)
+        total = weights.sum()
+        self.weights = weights / total
+        # Average per-beam likelihood of the cloud, the quantity Augmented MCL tracks.
+        mean_likelihood = math.exp((peak + math.log(total / weights.size)) / ranges.size)
+        self._track_likelihood(mean_likelihood)
+        self.estimate = self._estimate()
+
+    def _track_likelihood(self, mean_likelihood):
+        p = self.params
+        if p.recovery_alpha_slow <= 0 or p.recovery_alpha_fast <= 0:
+            return
+        if self._w_slow == 0.0:
+            self._w_slow = self._w_fast = mean_likelihood
+        else:
+            self._w_slow += p.recovery_alpha_slow * (mean_likelihood - self._w_slow)
+            self._w_fast += p.recovery_alpha_fast * (mean_likelihood - self._w_fast)
+
+    def _bins(self, particles):
+        p = self.params
+        keys = np.column_stack([
+            np.floor(particles[:, 0] / p.bin_size_xy), np.floor(particles[:, 1] / p.bin_size_xy),
+            np.floor(particles[:, 2] / p.bin_size_yaw)]).astype(np.int64)
+        # One integer per bin (coordinates stay far below 2^20 bins per axis).
+        return (keys[:, 0] + (1 << 20)) * (1 << 42) + (keys[:, 1] + (1 << 20)) * (1 << 21) + keys[:, 2] + (1 << 20)
+
+    def resample(self):
+        """Low-variance resampling; KLD decides how many particles to keep."""
+        p = self.params
+        weights = self.weights
+        cumulative = np.cumsum(weights)
+        cumulative[-1] = 1.0
+        draws = p.max_particles
+        positions = (self.rng.uniform() + np.arange(draws)) / draws
+        picked = np.searchsorted(cumulative, positions)
+        picked = picked[self.rng.permutation(draws)]
+        candidates = self.particles[picked]
+        count = self._kld_count(candidates)
+        new_particles = candidates[:count].copy()
+        inject = self._random_particle_share()
+        if inject > 0.0:
+            replace = self.rng.uniform(size=count) < inject
+            if replace.any():
+                chosen = self.rng.randint(0, self._free_x.size, size=int(replace.sum()))
+                new_particles[replace] = self._random_free_poses(chosen)
+        self.particles = new_particles
+        self.weights = np.full(count, 1.0 / count)
+
+    def _kld_count(self, candidates) -> int:
+        p = self.params
+        bins = self._bins(candidates)
+        _, first = np.unique(bins, return_index=True)
+        is_new = np.zeros(bins.size, dtype=np.int64)
+        is_new[first] = 1
+        distinct = np.cumsum(is_new)  # distinct bins among the first n+1 candidates
+        k = np.maximum(distinct - 1, 1).astype(float)
+        a = 2.0 / (9.0 * k)
+        needed = np.where(distinct > 1, k / (2.0 * p.kld_err) * (1.0 - a + np.sqrt(a) * self._kld_z) ** 3, 1.0)
+        counts = np.arange(1, bins.size + 1)
+        enough = (counts >= needed) & (counts >= p.min_particles)
+        hits = np.nonzero(enough)[0]
+        return int(hits[0] + 1) if hits.size else int(bins.size)
+
+    def _random_particle_share(self) -> float:
+        if self._w_slow <= 0.0:
+            return 0.0
+        return max(0.0, 1.0 - self._w_fast / self._w_slow)
+
+    def _estimate(self) -> Estimate:
+        """Weighted mean and covariance of the heaviest cluster (particles near the
+        heaviest KLD bin), so a multi-modal cloud does not average two places."""
+        bins = self._bins(self.particles)
+        unique, inverse = np.unique(bins, return_inverse=True)
+        mass = np.bincount(inverse, weights=self.weights)
+        best = self.particles[inverse == np.argmax(mass)]
+        best_w = self.weights[inverse == np.argmax(mass)]
+        centre = _weighted_pose_mean(best, best_w)
+        near = ((np.hypot(self.particles[:, 0] - centre[0], self.particles[:, 1] - centre[1]) < 1.0)
+                & (np.abs(wrap_angle(self.particles[:, 2] - centre[2])) < 0.5))
+        cluster, cluster_w = self.particles[near], self.weights[near]
+        mean = _weighted_pose_mean(cluster, cluster_w)
+        diff = cluster - np.asarray(mean)
+        diff[:, 2] = wrap_angle(diff[:, 2])
+        w = cluster_w / cluster_w.sum()
+        covariance = (diff * w[:, None]).T @ diff
+        return Estimate(mean, covariance, float(cluster_w.sum() / self.weights.sum()))
+
+    def converged(self) -> bool:
+        """One place holds nearly all the weight, and it is tight."""
+        estimate = self.estimate
+        if estimate is None:
+            return False
+        spread = math.sqrt(max(0.0, estimate.covariance[0, 0] + estimate.covariance[1, 1]))
+        return estimate.share >= self.params.converged_share and spread <= self.params.converged_spread
+
+    def spread(self) -> Tuple[float, float]:
+        """Position (m) and heading (rad) standard deviations of the whole cloud."""
+        mean = _weighted_pose_mean(self.particles, self.weights)
+        diff = self.particles - np.asarray(mean)
+        diff[:, 2] = wrap_angle(diff[:, 2])
+        var = (diff ** 2 * self.weights[:, None]).sum(axis=0)
+        return math.sqrt(var[0] + var[1]), math.sqrt(var[2])
+
+
+def _weighted_pose_mean(poses, weights) -> Tuple[float, float, float]:
+    w = weights / weights.sum()
+    x = float((poses[:, 0] * w).sum())
+    y = float((poses[:, 1] * w).sum())
+    yaw = math.atan2(float((np.sin(poses[:, 2]) * w).sum()), float((np.cos(poses[:, 2]) * w).sum()))
+    return (x, y, yaw)

@@ -1,0 +1,210 @@
+"""A growable log-odds occupancy grid and the cell updates a scan makes. Pure numpy; no rospy.
+
+Cells live on a fixed lattice: cell (i, j) covers x in [(i - s) r, (i + 1 - s) r), y in
+[(j - s) r, (j + 1 - s) r) for resolution r and cell shift s (0: cell corners at the map
+frame's origin; 1/2: a cell centred there), whatever part of the lattice the array
+currently holds, so updates computed once stay valid when the grid grows. Updates are
+additive (log-odds and an observation count), so a scan's update can be taken back
+exactly by applying it with sign -1: a rolling local map adds its newest scan and
+removes its oldest.
+"""
+import math
+
+import numpy as np
+
+from turtlebot3c_common.se2 import transform_points
+from turtlebot3c_maps.map_files import OccupancyMap
+
+LATTICE_SPAN = 1 << 21  # cell indices are kept within +-2^20 (52 km at 5 cm)
+
+
+class CellUpdate:
+    """The cells one scan observed: lattice indices of free cells and of hit cells (unique).
+
+    For hit cells it also carries where in the cell the hits were (sum of their positions
+    within the cell, in cells, and their count), so the map knows obstacles to sub-cell
+    precision.
+    """
+
+    def __init__(self, free, hits, hit_sums=None, hit_counts=None):
+        self.free = free  # (F, 2) int64 (i, j)
+        self.hits = hits  # (H, 2) int64
+        self.hit_sums = np.full((len(hits), 2), 0.5) if hit_sums is None else hit_sums  # (H, 2)
+        self.hit_counts = np.ones(len(hits)) if hit_counts is None else hit_counts     # (H,)
+
+    def bounds(self):
+        cells = np.concatenate((self.free, self.hits))
+        if len(cells) == 0:
+            return None
+        return cells.min(axis=0), cells.max(axis=0)
+
+
+def _cell_keys(cells):
+    return (cells[:, 0] + LATTICE_SPAN // 2) * LATTICE_SPAN + (cells[:, 1] + LATTICE_SPAN // 2)
+
+
+def _cells_of_keys(keys):
+    return np.column_stack((keys // LATTICE_SPAN - LATTICE_SPAN // 2, keys % LATTICE_SPAN - LATTICE_SPAN // 2))
+
+
+def _unique_cells(cells):
+    if len(cells) == 0:
+        return cells.reshape(0, 2)
+    return _cells_of_keys(np.unique(_cell_keys(cells)))
+
+
+def hit_cells(points, resolution, cell_shift=0.0):
+    """CellUpdate-style hits of points (N, 2) in the map frame: cells, position sums within them, counts."""
+    scaled = points / resolution + cell_shift
+    cells = np.floor(scaled).astype(np.int64)
+    if len(cells) == 0:
+        return cells.reshape(0, 2), np.zeros((0, 2)), np.zeros(0)
+    keys, inverse = np.unique(_cell_keys(cells), return_inverse=True)
+    fraction = scaled - cells
+    sums = np.column_stack((np.bincount(inverse, fraction[:, 0], len(keys)),
+                            np.bincount(inverse, fraction[:, 1], len(keys))))
+    return _cells_of_keys(keys), sums, np.bincount(inverse, minlength=len(keys)).astype(np.float64)
+
+
+def trace_scan(rays, pose, resolution, cell_shift=0.0):
+    """The CellUpdate of a scan (ScanRays in the robot frame) taken at `pose` in the map frame.
+
+    Rays are sampled every half cell, so no crossed cell is skipped; cells holding an
+    endpoint of a hit are hits, never free.
+    """
+    origin = transform_points(pose, rays.origin)[0]
+    hits = transform_points(pose, rays.hits)
+    ends = np.concatenate((hits, transform_points(pose, rays.free_ends)))
+    hit_cells_, hit_sums, hit_counts = hit_cells(hits, resolution, cell_shift)
+    if len(ends) == 0:
+        return CellUpdate(np.empty((0, 2), np.int64), hit_cells_, hit_sums, hit_counts)
+    step = resolution * 0.5
+    lengths = np.hypot(ends[:, 0] - origin[0], ends[:, 1] - origin[1])
+    samples = np.maximum(np.ceil(lengths / step).astype(np.int64), 1)
+    ray_index = np.repeat(np.arange(len(ends)), samples)
+    starts = np.cumsum(samples) - samples
+    fraction = (np.arange(ray_index.size) - np.repeat(starts, samples)) / np.repeat(samples, samples)
+    points = origin + (ends[ray_index] - origin) * fraction[:, None]
+    free_cells = _unique_cells(np.floor(points / resolution + cell_shift).astype(np.int64))
+    if len(hit_cells_) and len(free_cells):
+        free_cells = free_cells[~np.isin(_cell_keys(free_cells), _cell_keys(hit_cells_))]
+    return CellUpdate(free_cells, hit_cells_, hit_sums, hit_counts)
+
+
+class LogOddsGrid:
+    """Occupancy as log-odds per cell, with a count of observations (0 = unknown)."""
+
+    GROWTH = 64  # cells added beyond what is needed, so the array is rarely reallocated
+
+    def __init__(self, resolution, hit_log_odds=0.85, free_log_odds=-0.4, cell_shift=0.0):
+        self.resolution = float(resolution)
+        self.cell_shift = float(cell_shift)
+        self.hit_log_odds = float(hit_log_odds)
+        self.free_log_odds = float(free_log_odds)
+        self.offset = np.zeros(2, dtype=np.int64)   # lattice (i, j) of array cell [0, 0]
+        self.log_odds = np.zeros((0, 0), dtype=np.float32)  # [j - offset_j, i - offset_i]
+        self.observations = np.zeros((0, 0), dtype=np.int32)
+        self.hit_sums = np.zeros((0, 0, 2), dtype=np.float32)  # positions of hits within their cell
+        self.hit_counts = np.zeros((0, 0), dtype=np.float32)
+
+    @property
+    def shape(self):
+        return self.log_odds.shape
+
+    def clear(self):
+        self.log_odds[:] = 0.0
+        self.observations[:] = 0
+        self.hit_sums[:] = 0.0
+        self.hit_counts[:] = 0.0
+
+    def _ensure(self, low, high):
+        """Grow the arrays so lattice cells low..high (inclusive, (i, j)) are inside."""
+        height, width = self.log_odds.shape
+        if width and (low >= self.offset).all() and (high < self.offset + (width, height)).all():
+            return
+        if width:
+            old_low, old_high = self.offset, self.offset + (width, height) - 1
+            new_low = np.where(low < old_low, low - self.GROWTH, old_low)
+            new_high = np.where(high > old_high, high + self.GROWTH, old_high)
+        else:
+            new_low, new_high = low - self.GROWTH, high + self.GROWTH
+        size = new_high - new_low + 1
+        grown = []
+        for array in (self.log_odds, self.observations, self.hit_sums, self.hit_counts):
+            bigger = np.zeros((size[1], size[0]) + array.shape[2:], dtype=array.dtype)
+            if width:
+                di, dj = self.offset - new_low
+                bigger[dj:dj + height, di:di + width] = array
+            grown.append(bigger)
+        self.log_odds, self.observations, self.hit_sums, self.hit_counts = grown
+        self.offset = new_low
+
+    def add_scan(self, rays, pose):
+        """Mark a scan (ScanRays in the robot frame) taken at `pose` in the map frame."""
+        self.apply(trace_scan(rays, pose, self.resolution, self.cell_shift))
+
+    def apply(self, update, sign=1):
+        """Add (sign 1) or take back (sign -1) a scan's CellUpdate."""
+        bounds = update.bounds()
+        if bounds is None:
+            return
+        self._ensure(*bounds)
+        for cells, value in ((update.free, self.free_log_odds), (update.hits, self.hit_log_odds)):
+            if len(cells):
+                cols, rows = cells[:, 0] - self.offset[0], cells[:, 1] - self.offset[1]
+                self.log_odds[rows, cols] += sign * value
+                self.observations[rows, cols] += sign
+        if len(update.hits):
+            cols, rows = update.hits[:, 0] - self.offset[0], update.hits[:, 1] - self.offset[1]
+            self.hit_sums[rows, cols] += sign * update.hit_sums
+            self.hit_counts[rows, cols] += sign * update.hit_counts
+
+    def occupancy_strength(self, low, size):
+        """Obstacle evidence over the lattice window low (i, j), size (w, h), for scan matching.
+
+        Returns (strength, offsets): strength in [0, 1] per cell (0 for free, unknown and
+        outside), offsets (h, w, 2) from each cell's centre to the mean of its hits, in cells.
+        """
+        strength = np.zeros((size[1], size[0]), dtype=np.float32)
+        offsets = np.zeros((size[1], size[0], 2), dtype=np.float32)
+        height, width = self.log_odds.shape
+        if not width:
+            return strength, offsets
+        src_low = np.maximum(low, self.offset)
+        src_high = np.minimum(low + size, self.offset + (width, height))
+        if (src_high <= src_low).any():
+            return strength, offsets
+        a, b, w = src_low - self.offset, src_high - self.offset, src_low - low
+        rows, cols = slice(a[1], b[1]), slice(a[0], b[0])
+        target = (slice(w[1], w[1] + b[1] - a[1]), slice(w[0], w[0] + b[0] - a[0]))
+        # One net hit is full evidence; unknown and free cells give none.
+        strength[target] = np.clip(self.log_odds[rows, cols] / self.hit_log_odds, 0.0, 1.0)
+        counts = self.hit_counts[rows, cols]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = self.hit_sums[rows, cols] / counts[:, :, None] - 0.5
+        offsets[target] = np.where(counts[:, :, None] > 0.5, mean, 0.0)
+        return strength, offsets
+
+    def to_occupancy_map(self, occupied_probability=0.65, free_probability=0.45, margin=2):
+        """The observed part of the grid as an OccupancyMap with 100 / 0 / -1 cells (as gmapping publishes)."""
+        observed = self.observations > 0
+        if not observed.any():
+            return OccupancyMap(np.full((1, 1), -1, dtype=np.int8), self.resolution, self._corner(self.offset) + (0.0,))
+        rows = np.flatnonzero(observed.any(axis=1))
+        cols = np.flatnonzero(observed.any(axis=0))
+        r0, r1 = max(rows[0] - margin, 0), min(rows[-1] + margin + 1, observed.shape[0])
+        c0, c1 = max(cols[0] - margin, 0), min(cols[-1] + margin + 1, observed.shape[1])
+        log_odds = self.log_odds[r0:r1, c0:c1]
+        cells = np.full(log_odds.shape, -1, dtype=np.int8)
+        seen = observed[r0:r1, c0:c1]
+        cells[seen & (log_odds >= _logit(occupied_probability))] = 100
+        cells[seen & (log_odds <= _logit(free_probability))] = 0
+        return OccupancyMap(cells, self.resolution, self._corner(self.offset + (c0, r0)) + (0.0,))
+
+    def _corner(self, cell):
+        """(x, y) of the lower corner of lattice cell (i, j)."""
+        return tuple(float((index - self.cell_shift) * self.resolution) for index in cell)
+
+
+def _logit(probability):
+    return math.log(probability / (1.0 - probability))

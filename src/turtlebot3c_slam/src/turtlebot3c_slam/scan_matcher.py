@@ -1,0 +1,204 @@
+"""Scan-to-map matching: a correlative search over rotations and translations with branch and bound.
+
+The map side is a likelihood field over a window of the grid lattice: each cell holds how
+well a scan endpoint falling there agrees with the map (1 on an obstacle, decaying over a
+couple of cells). A pose's score is the mean field value under the scan's points.
+
+The search is exhaustive over rotations (steps small enough that the farthest point moves
+about one cell) and branch-and-bound over translations: precomputed maxima of the field over
+2^h x 2^h blocks bound the score of every translation in a block, so whole blocks whose
+bound cannot beat the best exact score found so far are skipped (Olson's multi-resolution
+correlative matching, as in Cartographer's real-time loop closure). The likelihood field
+knows where in each cell the hits were, so a coarse-looking grid still scores sub-cell
+offsets of walls right. Pure numpy; no rospy.
+"""
+import math
+
+import numpy as np
+
+from turtlebot3c_common.se2 import wrap_angle
+
+
+def likelihood_field(strength, offsets=None, sigma_cells=1.0, radius=2):
+    """How well a point in each cell agrees with the obstacles (strength in [0, 1] per cell).
+
+    Each obstacle cell spreads its strength to the cells around with a Gaussian fall-off in
+    the distance from their centres to where its hits were (`offsets` (h, w, 2), in cells,
+    from the obstacle cell's centre; default the centre); a cell keeps the largest value.
+    Sampled at cell centres and interpolated, the field peaks where the hits were, not at
+    the centres of their cells, so matching is not biased by the grid.
+    """
+    height, width = strength.shape
+    if offsets is None:
+        offsets = np.zeros((height, width, 2), dtype=np.float32)
+    size = (height + 2 * radius, width + 2 * radius)
+    padded = np.zeros(size, dtype=np.float32)
+    padded[radius:radius + height, radius:radius + width] = strength
+    padded_dx = np.zeros(size, dtype=np.float32)
+    padded_dx[radius:radius + height, radius:radius + width] = offsets[:, :, 0]
+    padded_dy = np.zeros(size, dtype=np.float32)
+    padded_dy[radius:radius + height, radius:radius + width] = offsets[:, :, 1]
+    field = np.zeros((height, width), dtype=np.float32)
+    scale = np.float32(-0.5 / sigma_cells ** 2)
+    for dy in range(-radius, radius + 1):
+        for dx in range(-radius, radius + 1):
+            window = (slice(radius + dy, radius + dy + height), slice(radius + dx, radius + dx + width))
+            gap_x = padded_dx[window] + np.float32(dx)
+            gap_y = padded_dy[window] + np.float32(dy)
+            np.maximum(field, padded[window] * np.exp(scale * (gap_x * gap_x + gap_y * gap_y)), out=field)
+    return field
+
+
+class MatchResult:
+    def __init__(self, pose, score):
+        self.pose = pose
+        self.score = score  # mean field value under the points at pose, in [0, 1]
+
+    def __repr__(self):
+        return f"MatchResult(pose={self.pose}, score={self.score:.3f})"
+
+
+class GridMatcher:
+    """Matches point sets (robot frame) against one likelihood field; `low` is the lattice (i, j)
+    of field[0, 0] and `levels` the number of coarser maxima grids for branch and bound."""
+
+    def __init__(self, field, low, resolution, levels=4, max_candidates=4000):
+        self.resolution = float(resolution)
+        self.levels = int(levels)
+        self.max_candidates = int(max_candidates)
+        self.pad = (1 << self.levels) + 1
+        height, width = field.shape
+        base = np.zeros((height + 2 * self.pad, width + 2 * self.pad), dtype=np.float32)
+        base[self.pad:self.pad + height, self.pad:self.pad + width] = field
+        self.low = np.asarray(low, dtype=np.int64) - self.pad  # lattice (i, j) of base[0, 0]
+        self.pyramid = [base]
+        self._penalty = None
+        for level in range(1, self.levels + 1):
+            half = 1 << (level - 1)
+            previous = self.pyramid[-1]
+            wider = previous.copy()
+            np.maximum(wider[:, :-half], previous[:, half:], out=wider[:, :-half])
+            taller = wider.copy()
+            np.maximum(taller[:-half, :], wider[half:, :], out=taller[:-half, :])
+            self.pyramid.append(taller)
+
+    # --- scoring ---------------------------------------------------------------------------
+
+    def _cell_indices(self, world_points):
+        """Integer (col, row) of points (..., 2) in the padded arrays (unclipped)."""
+        cells = np.floor(world_points / self.resolution).astype(np.int64)
+        return cells[..., 0] - self.low[0], cells[..., 1] - self.low[1]
+
+    def _scores(self, level, cols, rows, candidates):
+        """Mean value at `level` for candidates (angle index, dx, dy) given per-angle base indices."""
+        grid = self.pyramid[level]
+        height, width = grid.shape
+        angle, dx, dy = candidates[:, 0], candidates[:, 1], candidates[:, 2]
+        c = np.clip(cols[angle] + dx[:, None], 0, width - 1)
+        r = np.clip(rows[angle] + dy[:, None], 0, height - 1)
+        return grid[r, c].mean(axis=1)
+
+    def score(self, points, pose):
+        """Mean field value of robot-frame points at pose (cell lookup, no interpolation)."""
+        world = _transform(points, pose)
+        cols, rows = self._cell_indices(world[None])
+        return float(self._scores(0, cols, rows, np.zeros((1, 3), dtype=np.int64))[0])
+
+    # --- search ----------------------------------------------------------------------------
+
+    def match(self, points, prior, window_xy, window_theta, angle_step=None, prior_sigmas=None):
+        """Best pose within +-window_xy (m) and +-window_theta (rad) of `prior` for `points` (N, 2).
+
+        Rotations are tried every `angle_step` (default: the farthest point moves one cell),
+        translations every cell. With prior_sigmas (m, rad), a pose's score is multiplied by a
+        Gaussian of its distance from the prior, so where the scan cannot tell poses apart (a
+        corridor, a doorway) the prior wins; ties always keep the prior.
+        """
+        if len(points) == 0:
+            return MatchResult(tuple(prior), 0.0)
+        if angle_step is None:
+            reach = max(float(np.max(np.hypot(points[:, 0], points[:, 1]))), self.resolution)
+            angle_step = min(max(self.resolution / reach, math.radians(0.25)), math.radians(2.0))
+        steps = int(math.ceil(window_theta / angle_step))
+        angles = prior[2] + np.arange(-steps, steps + 1) * angle_step
+        cos, sin = np.cos(angles)[:, None], np.sin(angles)[:, None]
+        world = np.stack((prior[0] + cos * points[:, 0] - sin * points[:, 1],
+                          prior[1] + sin * points[:, 0] + cos * points[:, 1]), axis=-1)
+        cols, rows = self._cell_indices(world)
+        reach = int(math.ceil(window_xy / self.resolution))
+        self._penalty = None
+        if prior_sigmas is not None:
+            self._penalty = (self.resolution ** 2 / (2.0 * prior_sigmas[0] ** 2),
+                             angle_step ** 2 / (2.0 * prior_sigmas[1] ** 2), steps)
+        best_candidate, best_score = self._branch_and_bound(cols, rows, steps, reach)
+        angle_index, dx, dy = best_candidate
+        angle = wrap_angle(float(angles[angle_index]))
+        pose = (prior[0] + dx * self.resolution, prior[1] + dy * self.resolution, angle)
+        return MatchResult(pose, best_score)
+
+    def _branch_and_bound(self, cols, rows, center_angle, reach):
+        top = min(self.levels, max(0, int(math.ceil(math.log2(2 * reach + 1)))))
+        stride = 1 << top
+        starts = np.arange(-reach, reach + 1, stride)
+        a, x, y = np.meshgrid(np.arange(cols.shape[0]), starts, starts, indexing="ij")
+        candidates = np.column_stack((a.ravel(), x.ravel(), y.ravel()))
+        prior_candidate = np.array([[center_angle, 0, 0]])
+        best_score = float(self._exact_scores(cols, rows, prior_candidate)[0])
+        best = prior_candidate[0]
+        bounds = self._scores(top, cols, rows, candidates)
+        greedy, greedy_score = self._descend(cols, rows, candidates[np.argmax(bounds)], top, reach)
+        if greedy_score > best_score:
+            best, best_score = greedy, greedy_score
+        for level in range(top, 0, -1):
+            keep = bounds > best_score
+            if not keep.any():
+                return best, best_score
+            candidates, bounds = candidates[keep], bounds[keep]
+            if len(candidates) > self.max_candidates:
+                order = np.argsort(-bounds)[:self.max_candidates]
+                candidates = candidates[order]
+            candidates = self._children(candidates, level, reach)
+            bounds = self._scores(level - 1, cols, rows, candidates)
+        bounds = self._with_penalty(bounds, candidates)
+        index = int(np.argmax(bounds))
+        if bounds[index] > best_score:
+            best, best_score = candidates[index], float(bounds[index])
+        return best, best_score
+
+    def _exact_scores(self, cols, rows, candidates):
+        return self._with_penalty(self._scores(0, cols, rows, candidates), candidates)
+
+    def _with_penalty(self, scores, candidates):
+        """Scores times the prior's Gaussian (at most 1, so coarser levels' bounds stay bounds)."""
+        if self._penalty is None:
+            return scores
+        per_cell, per_step, center = self._penalty
+        shift = candidates[:, 1] ** 2 + candidates[:, 2] ** 2
+        turn = (candidates[:, 0] - center) ** 2
+        return scores * np.exp(-(per_cell * shift + per_step * turn))
+
+    def _children(self, candidates, level, reach):
+        half = 1 << (level - 1)
+        children = []
+        for ox in (0, half):
+            for oy in (0, half):
+                child = candidates.copy()
+                child[:, 1] += ox
+                child[:, 2] += oy
+                children.append(child)
+        children = np.concatenate(children)
+        return children[(children[:, 1] <= reach) & (children[:, 2] <= reach)]
+
+    def _descend(self, cols, rows, candidate, level, reach):
+        candidates = candidate[None]
+        for current in range(level, 0, -1):
+            children = self._children(candidates, current, reach)
+            scores = self._scores(current - 1, cols, rows, children)
+            candidates = children[np.argmax(scores)][None]
+        return candidates[0], float(self._exact_scores(cols, rows, candidates)[0])
+
+
+def _transform(points, pose):
+    x, y, theta = pose
+    c, s = math.cos(theta), math.sin(theta)
+    return np.column_stack((x + c * points[:, 0] - s * points[:, 1], y + s * points[:, 0] + c * points[:, 1]))

@@ -1,0 +1,381 @@
+"""2-D laser SLAM: scan-to-map tracking, keyframes in a pose graph, loop closure. Pure numpy; no rospy.
+
+Use::
+
+    slam = Slam(SlamConfig())                      # or SlamConfig.from_dict({...})
+    pose = slam.add_scan(stamp, ranges, geometry, odom_pose)   # per LaserScan (+ motion: scan_deskew)
+    slam.map_to_odom                               # (x, y, yaw) for the map -> odom transform
+    slam.occupancy_map()                           # map_files.OccupancyMap (100 / 0 / -1)
+    slam.trajectory()                              # [(stamp, x, y, yaw)] per scan, after loop closures
+
+How it works:
+- *Tracking*: odometry since the last scan predicts the pose; the scan is matched against a
+  local map made of the last `local_map_keyframes` keyframes (a log-odds grid that adds each
+  new keyframe's scan and takes back the oldest), searching a small window around the
+  prediction (scan_matcher). A poor match (score below `match_min_score`) keeps odometry.
+- *Keyframes*: after `keyframe_distance` metres or `keyframe_angle` radians, the scan becomes
+  a node of the pose graph, chained to the previous keyframe by the tracked relative pose.
+- *Loop closure*: a new keyframe near an old part of the trajectory (more than
+  `loop_min_travel` metres of path ago, within `loop_search_radius`) is matched, with the
+  last few keyframes' points, against a submap built from the old keyframes around there,
+  over a wide window (branch and bound keeps that fast). A good match adds a robust edge and
+  the graph is optimised; the maps are then rebuilt from every keyframe at its new pose, so
+  the loop closes without doubled walls.
+- The map frame is the odometry frame at the first scan (map -> odom starts as identity).
+"""
+import collections
+import math
+
+import numpy as np
+
+from turtlebot3c_common.se2 import compose, distance, inverse, relative, transform_points, wrap_angle
+
+from .occupancy_grid import LogOddsGrid, hit_cells, trace_scan
+from .pose_graph import PoseGraph
+from .scan_matcher import GridMatcher, likelihood_field
+from .slam_scan import scan_rays, voxel_filter
+
+# Names turtlebot3_slam's `slam_methods` argument takes that this SLAM stands in for, with the
+# node name upstream gives each (its CI looks for turtlebot3_slam_gmapping).
+SLAM_METHODS = collections.OrderedDict([("gmapping", "turtlebot3_slam_gmapping"), ("karto", "slam_karto")])
+
+
+def check_slam_method(name):
+    """The node name for a slam_methods value; ValueError naming the known ones otherwise."""
+    if name not in SLAM_METHODS:
+        raise ValueError("unknown slam_methods {!r}: known methods are {} (each runs turtlebot3c's own "
+                         "SLAM)".format(name, ", ".join(SLAM_METHODS)))
+    return SLAM_METHODS[name]
+
+
+class SlamConfig:
+    """SLAM parameters; `SlamConfig.from_dict(params)` rejects unknown names and bad values."""
+
+    DEFAULTS = collections.OrderedDict([
+        ("resolution", 0.05),             # m per cell of the published map
+        ("match_resolution", 0.025),      # m per cell of the maps scans are matched against
+        ("usable_range", 8.0),            # m; hits beyond count as free rays up to here
+        ("hit_log_odds", 0.85),
+        ("free_log_odds", -0.4),
+        ("keyframe_distance", 0.2),       # m of motion between keyframes
+        ("keyframe_angle", 0.2),          # rad of rotation between keyframes
+        ("local_map_keyframes", 30),      # keyframes in the tracking map
+        ("match_window_xy", 0.1),         # m, tracking search half-width around odometry's prediction
+        ("match_window_theta", 0.08),     # rad
+        ("match_prior_sigma_xy", 0.05),   # m; how far a better score may pull from the prediction
+        ("match_prior_sigma_theta", 0.05),  # rad
+        ("match_min_score", 0.2),         # below: keep odometry
+        ("match_points", 300),            # at most this many scan points are matched
+        ("loop_search_radius", 3.0),      # m between a new keyframe and an old one to try closing
+        ("loop_min_travel", 6.0),         # m of path between them
+        ("loop_window_xy", 1.0),          # m, loop-closure search half-width
+        ("loop_window_theta", 0.35),      # rad
+        ("loop_min_score", 0.55),         # mean likelihood needed to accept a closure
+        ("loop_submap_keyframes", 12),    # old keyframes each side of the candidate in its submap
+        ("loop_cloud_keyframes", 6),      # recent keyframes whose points form the query
+        ("loop_attempt_every", 2),        # keyframes between loop-closure attempts
+        ("odometry_sigma_xy", 0.02),      # m, sequential edge uncertainty
+        ("odometry_sigma_theta", 0.01),   # rad
+        ("loop_sigma_xy", 0.05),          # m, loop edge uncertainty
+        ("loop_sigma_theta", 0.02),       # rad
+    ])
+    INTEGERS = ("local_map_keyframes", "match_points", "loop_submap_keyframes", "loop_cloud_keyframes",
+                "loop_attempt_every")
+
+    def __init__(self, **values):
+        unknown = sorted(set(values) - set(self.DEFAULTS))
+        if unknown:
+            raise ValueError("unknown SLAM parameter(s) {}; known: {}".format(
+                ", ".join(unknown), ", ".join(self.DEFAULTS)))
+        for name, default in self.DEFAULTS.items():
+            value = values.get(name, default)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ValueError(f"SLAM parameter {name} must be a finite number, got {value!r}")
+            if name in self.INTEGERS:
+                if int(value) != value or value < 1:
+                    raise ValueError(f"SLAM parameter {name} must be a positive integer, got {value!r}")
+                value = int(value)
+            elif name != "free_log_odds" and value <= 0:
+                raise ValueError(f"SLAM parameter {name} must be positive, got {value!r}")
+            setattr(self, name, value)
+        if self.free_log_odds >= 0:
+            raise ValueError(f"SLAM parameter free_log_odds must be negative, got {self.free_log_odds!r}")
+
+    @classmethod
+    def from_dict(cls, values):
+        return cls(**dict(values))
+
+    def as_dict(self):
+        return collections.OrderedDict((name, getattr(self, name)) for name in self.DEFAULTS)
+
+
+class MapRebuild:
+    """The map redrawn from keyframes at given poses (see Slam.map_rebuild)."""
+
+    def __init__(self, grid, keyframes, optimizations):
+        self.grid = grid
+        self.keyframes = keyframes          # [(ScanRays, pose)]
+        self.optimizations = optimizations  # the Slam's optimisation count when taken
+
+    def run(self):
+        for rays, pose in self.keyframes:
+            self.grid.add_scan(rays, pose)
+        return self.grid
+
+
+class Keyframe:
+    def __init__(self, stamp, rays, points, travel):
+        self.stamp = stamp
+        self.rays = rays        # ScanRays in the robot frame, to rebuild maps
+        self.points = points    # down-sampled hits in the robot frame, to match
+        self.travel = travel    # m of path from the first scan
+
+
+class Slam:
+    def __init__(self, config=None):
+        self.config = config or SlamConfig()
+        self.graph = PoseGraph()
+        self.keyframes = []
+        self.local_grid = self._new_grid(self.config.match_resolution)
+        self.local_updates = collections.deque()
+        self.global_grid = self._new_map_grid()
+        self._global_dirty = False
+        self._optimizations = 0
+        self._local_version = 0
+        self._tracking = None      # (GridMatcher, low, high, version)
+        self._scans = []           # (stamp, keyframe index, pose relative to it)
+        self.pose = None
+        self.odom = None
+        self.travel = 0.0
+        self.map_version = 0       # changes whenever the map may have changed
+        self._last_loop_attempt = -(10 ** 9)
+        self.loop_closures = []    # (old keyframe, new keyframe, score)
+        self.poor_matches = 0
+
+    def _new_grid(self, resolution, cell_shift=0.0):
+        return LogOddsGrid(resolution, self.config.hit_log_odds, self.config.free_log_odds, cell_shift)
+
+    def _new_map_grid(self):
+        """The published map's grid, a cell centred on the map frame's origin: walls that lie on
+        a lattice of the resolution from there (as the simulated worlds' do from their spawn
+        poses) are then drawn in the cells centred on them. With cell corners there instead,
+        which cell a wall's hits fall in is decided by their noise, and every such wall is drawn
+        a fraction of a cell to the same side. Elsewhere the choice makes no difference."""
+        return self._new_grid(self.config.resolution, cell_shift=0.5)
+
+    # --- per scan -------------------------------------------------------------------------
+
+    def add_scan(self, stamp, ranges, geometry, odom_pose, motion=None):
+        """Process one scan with the odometry pose (odom frame) of the robot at its time; returns the map pose.
+
+        A scan measured over time comes with `motion` (scan_deskew.beam_motion), and `stamp` and
+        `odom_pose` are then those of its reference time (scan_deskew.reference_time).
+        """
+        rays = scan_rays(geometry, ranges, self.config.usable_range, motion)
+        points = self._matching_points(rays.hits)
+        odom_pose = tuple(float(v) for v in odom_pose)
+        if not self.keyframes:
+            self.pose, self.odom = odom_pose, odom_pose
+            self._add_keyframe(stamp, rays, points)
+            self._scans.append((stamp, 0, (0.0, 0.0, 0.0)))
+            return self.pose
+        delta = relative(self.odom, odom_pose)
+        self.travel += math.hypot(delta[0], delta[1])
+        predicted = compose(self.pose, delta)
+        self.pose = self._track(points, predicted)
+        self.odom = odom_pose
+        last = len(self.keyframes) - 1
+        moved = relative(self.graph.poses[last], self.pose)
+        if math.hypot(moved[0], moved[1]) >= self.config.keyframe_distance or \
+                abs(moved[2]) >= self.config.keyframe_angle:
+            self._add_keyframe(stamp, rays, points)
+            last = len(self.keyframes) - 1
+        self._scans.append((stamp, last, relative(tuple(self.graph.poses[last]), self.pose)))
+        return self.pose
+
+    @property
+    def map_to_odom(self):
+        if self.pose is None:
+            return (0.0, 0.0, 0.0)
+        return compose(self.pose, inverse(self.odom))
+
+    def _matching_points(self, hits):
+        points = voxel_filter(hits, self.config.resolution)
+        if len(points) > self.config.match_points:
+            points = points[np.linspace(0, len(points) - 1, self.config.match_points).astype(int)]
+        return points
+
+    def _track(self, points, predicted):
+        if len(points) < 10 or not self.local_updates:
+            return predicted
+        matcher = self._tracking_matcher(points, predicted)
+        result = matcher.match(points, predicted, self.config.match_window_xy, self.config.match_window_theta,
+                               prior_sigmas=(self.config.match_prior_sigma_xy, self.config.match_prior_sigma_theta))
+        if result.score < self.config.match_min_score:
+            self.poor_matches += 1
+            return predicted
+        return result.pose
+
+    def _tracking_matcher(self, points, predicted):
+        reach = float(np.max(np.hypot(points[:, 0], points[:, 1]))) + self.config.match_window_xy
+        resolution = self.config.match_resolution
+        need_low = np.floor((np.array(predicted[:2]) - reach) / resolution).astype(np.int64)
+        need_high = np.floor((np.array(predicted[:2]) + reach) / resolution).astype(np.int64)
+        cached = self._tracking
+        if cached is not None and cached[3] == self._local_version and (need_low >= cached[1]).all() \
+                and (need_high <= cached[2]).all():
+            return cached[0]
+        margin = int(math.ceil(1.5 / resolution))
+        low, high = need_low - margin, need_high + margin
+        strength, offsets = self.local_grid.occupancy_strength(low, high - low + 1)
+        matcher = GridMatcher(likelihood_field(strength, offsets), low, resolution, levels=3)
+        self._tracking = (matcher, low, high, self._local_version)
+        return matcher
+
+    # --- keyframes and the maps -----------------------------------------------------------
+
+    def _add_keyframe(self, stamp, rays, points):
+        index = self.graph.add_node(self.pose)
+        self.keyframes.append(Keyframe(stamp, rays, points, self.travel))
+        if index > 0:
+            previous = tuple(self.graph.poses[index - 1])
+            self.graph.add_edge(index - 1, index, relative(previous, self.pose), self._information(
+                self.config.odometry_sigma_xy, self.config.odometry_sigma_theta))
+        update = trace_scan(rays, self.pose, self.config.match_resolution)
+        self.local_grid.apply(update)
+        self.local_updates.append((index, update))
+        if len(self.local_updates) > self.config.local_map_keyframes:
+            self.local_grid.apply(self.local_updates.popleft()[1], sign=-1)
+        if not self._global_dirty:
+            self.global_grid.add_scan(rays, self.pose)
+        self._local_version += 1
+        self.map_version += 1
+        if index - self._last_loop_attempt >= self.config.loop_attempt_every:
+            self._try_loop_closure(index)
+
+    @staticmethod
+    def _information(sigma_xy, sigma_theta):
+        return np.diag([1.0 / sigma_xy ** 2, 1.0 / sigma_xy ** 2, 1.0 / sigma_theta ** 2])
+
+    def _rebuild_local_map(self):
+        self.local_grid.clear()
+        rebuilt = collections.deque()
+        for index, _ in self.local_updates:
+            update = trace_scan(self.keyframes[index].rays, tuple(self.graph.poses[index]),
+                                self.config.match_resolution)
+            self.local_grid.apply(update)
+            rebuilt.append((index, update))
+        self.local_updates = rebuilt
+        self._local_version += 1
+
+    def occupancy_map(self):
+        """The whole map so far as a map_files.OccupancyMap (cells 100 / 0 / -1)."""
+        rebuild = self.map_rebuild()
+        if rebuild is not None:
+            rebuild.run()
+            self.adopt(rebuild)
+        return self.global_grid.to_occupancy_map()
+
+    @property
+    def map_outdated(self):
+        """True after a loop closure until the map is redrawn (occupancy_map() or adopt())."""
+        return self._global_dirty
+
+    def map_rebuild(self):
+        """None while the map is up to date; after a loop closure moved keyframes, a MapRebuild.
+
+        Redrawing every keyframe takes a while in a big map: a node can run() the rebuild
+        without holding up scan processing, then hand it back with adopt().
+        """
+        if not self._global_dirty:
+            return None
+        keyframes = [(keyframe.rays, tuple(self.graph.poses[index])) for index, keyframe in enumerate(self.keyframes)]
+        return MapRebuild(self._new_map_grid(), keyframes, self._optimizations)
+
+    def adopt(self, rebuild):
+        """Take a finished MapRebuild as the map (adding keyframes made since); False if a new loop
+        closure has moved the keyframes again in the meantime."""
+        if not self._global_dirty or rebuild.optimizations != self._optimizations:
+            return False
+        for index in range(len(rebuild.keyframes), len(self.keyframes)):
+            rebuild.grid.add_scan(self.keyframes[index].rays, tuple(self.graph.poses[index]))
+        self.global_grid = rebuild.grid
+        self._global_dirty = False
+        return True
+
+    def trajectory(self):
+        """(stamp, x, y, yaw) of every scan, on the optimised keyframe poses."""
+        return [(stamp,) + compose(tuple(self.graph.poses[index]), offset)
+                for stamp, index, offset in self._scans]
+
+    # --- loop closure ---------------------------------------------------------------------
+
+    def _try_loop_closure(self, newest):
+        config = self.config
+        oldest_local = newest - config.local_map_keyframes
+        if oldest_local <= 0:
+            return
+        travel = np.array([keyframe.travel for keyframe in self.keyframes[:oldest_local]])
+        poses = self.graph.poses[:oldest_local]
+        current = tuple(self.graph.poses[newest])
+        gaps = np.hypot(poses[:, 0] - current[0], poses[:, 1] - current[1])
+        eligible = (self.keyframes[newest].travel - travel >= config.loop_min_travel) & \
+            (gaps <= config.loop_search_radius)
+        if not eligible.any():
+            return
+        self._last_loop_attempt = newest
+        candidate = int(np.flatnonzero(eligible)[np.argmin(gaps[eligible])])
+        members = [index for index in range(candidate - config.loop_submap_keyframes,
+                                            candidate + config.loop_submap_keyframes + 1)
+                   if 0 <= index < oldest_local]
+        cloud = self._recent_cloud(newest)
+        if len(cloud) < 20:
+            return
+        matcher = self._submap_matcher(members, current, cloud)
+        result = matcher.match(cloud, current, config.loop_window_xy, config.loop_window_theta)
+        if result.score < config.loop_min_score:
+            return
+        self.graph.add_edge(candidate, newest, relative(tuple(self.graph.poses[candidate]), result.pose),
+                            self._information(config.loop_sigma_xy, config.loop_sigma_theta), robust=True)
+        self.loop_closures.append((candidate, newest, result.score))
+        if distance(result.pose, current) > config.resolution * 0.5 or \
+                abs(wrap_angle(result.pose[2] - current[2])) > 0.005:
+            self._optimize()
+
+    def _recent_cloud(self, newest):
+        current = tuple(self.graph.poses[newest])
+        parts = []
+        for index in range(max(0, newest - self.config.loop_cloud_keyframes + 1), newest + 1):
+            seen_from_current = relative(current, tuple(self.graph.poses[index]))
+            parts.append(transform_points(seen_from_current, self.keyframes[index].points))
+        cloud = voxel_filter(np.concatenate(parts), self.config.resolution)
+        limit = 2 * self.config.match_points
+        if len(cloud) > limit:
+            cloud = cloud[np.linspace(0, len(cloud) - 1, limit).astype(int)]
+        return cloud
+
+    def _submap_matcher(self, members, current, cloud):
+        resolution = self.config.match_resolution
+        reach = float(np.max(np.hypot(cloud[:, 0], cloud[:, 1]))) + self.config.loop_window_xy + 0.5
+        low = np.floor((np.array(current[:2]) - reach) / resolution).astype(np.int64)
+        size = np.full(2, int(math.ceil(2 * reach / resolution)) + 1)
+        hits = np.concatenate([transform_points(tuple(self.graph.poses[index]), self.keyframes[index].points)
+                               for index in members])
+        cells, sums, counts = hit_cells(hits, resolution)
+        cells -= low
+        inside = ((cells >= 0) & (cells < size)).all(axis=1)
+        strength = np.zeros((size[1], size[0]), dtype=np.float32)
+        offsets = np.zeros((size[1], size[0], 2), dtype=np.float32)
+        strength[cells[inside, 1], cells[inside, 0]] = 1.0
+        offsets[cells[inside, 1], cells[inside, 0]] = sums[inside] / counts[inside, None] - 0.5
+        return GridMatcher(likelihood_field(strength, offsets), low, resolution, levels=5)
+
+    def _optimize(self):
+        newest = len(self.keyframes) - 1
+        before = tuple(self.graph.poses[newest])
+        self.graph.optimize()
+        self.pose = compose(tuple(self.graph.poses[newest]), relative(before, self.pose))
+        self._rebuild_local_map()
+        self._global_dirty = True
+        self._optimizations += 1
+        self.map_version += 1

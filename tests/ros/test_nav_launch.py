@@ -1,0 +1,90 @@
+"""turtlebot3c_navigation.launch end to end, from the install space: the simulator, the
+model (bringup simulation:=true), the teleop mux and navigation on a map of the world."""
+import math
+
+import pytest
+
+from testkit.nav_launch import ABORTED, RESULT, SPAWN, SUCCEEDED, launch_navigation, pose_stamped, true_pose
+from testkit.ros_harness import wait_until
+
+
+@pytest.fixture(scope="module")
+def navigation(ros_master):
+    return launch_navigation(ros_master)
+
+
+def test_map_server_publishes_the_map_latched_and_answers_static_map(navigation):
+    probe = navigation.probe
+    grid = probe.wait_for_message("/map", "nav_msgs/OccupancyGrid", start=0)
+    assert grid["header"]["frame_id"] == "map"
+    assert grid["info"]["resolution"] == pytest.approx(0.05)
+    assert len(grid["data"]) == grid["info"]["width"] * grid["info"]["height"]
+    assert set(grid["data"]) == {0, 100}
+    served = probe.call("/static_map")["map"]
+    assert served["info"]["width"] == grid["info"]["width"] and served["data"] == grid["data"]
+
+
+def test_amcl_localises_at_the_initial_pose_and_publishes_map_to_odom(navigation):
+    probe = navigation.probe
+    estimate = probe.wait_for_message("/amcl_pose", "geometry_msgs/PoseWithCovarianceStamped", start=0)
+    assert estimate["header"]["frame_id"] == "map"
+    position = estimate["pose"]["pose"]["position"]
+    assert math.hypot(position["x"] - SPAWN[0], position["y"] - SPAWN[1]) < 0.1
+    transform = probe.transform("map", "odom", timeout=10)
+    assert transform["header"]["frame_id"] == "map" and transform["child_frame_id"] == "odom"
+
+
+def test_goal_from_rviz_is_reached_through_the_mux(navigation):
+    probe = navigation.probe
+    probe.subscribe("/move_base/result", RESULT)
+    probe.subscribe("/move_base/plan", "nav_msgs/Path")
+    start = probe.count("/move_base/result")
+    plans_start = probe.count("/move_base/plan")
+    goal = (-0.55, -0.55, math.pi / 2)
+    probe.publish("/move_base_simple/goal", "geometry_msgs/PoseStamped", pose_stamped(*goal))
+    result = probe.wait_for_message("/move_base/result", RESULT, timeout=120, start=start)
+    assert (result["status"]["status"], result["status"]["text"]) == (SUCCEEDED, "goal reached")
+    x, y, yaw = true_pose(probe)
+    assert math.hypot(x - goal[0], y - goal[1]) < 0.08
+    assert abs(math.remainder(yaw - goal[2], 2 * math.pi)) < 0.2
+    first_plan = probe.messages("/move_base/plan", plans_start)[0]
+    assert first_plan["header"]["frame_id"] == "map" and len(first_plan["poses"]) > 20  # 5 cm apart, > 1 m
+    end = first_plan["poses"][-1]["pose"]["position"]
+    assert (end["x"], end["y"]) == (pytest.approx(goal[0]), pytest.approx(goal[1]))
+    collisions = probe.wait_for_message("/sim/collisions", "std_msgs/UInt32", start=0)
+    assert collisions["data"] == 0
+
+
+def test_unreachable_goal_is_aborted_with_a_clear_status(navigation):
+    probe = navigation.probe
+    probe.subscribe("/move_base/result", RESULT)
+    start = probe.count("/move_base/result")
+    probe.publish("/move_base/goal", "move_base_msgs/MoveBaseActionGoal",
+                  {"goal_id": {"id": "into-the-pillar"}, "goal": {"target_pose": pose_stamped(0.0, 0.0, 0.0)}})
+    result = probe.wait_for_message("/move_base/result", RESULT, timeout=60, start=start)
+    assert result["status"]["status"] == ABORTED
+    assert result["status"]["goal_id"]["id"] == "into-the-pillar"
+    assert result["status"]["text"].startswith("goal unreachable: goal (0.00, 0.00) is in or too close to an obstacle")
+
+
+def test_global_localization_spreads_the_particles_over_the_map(navigation):
+    probe = navigation.probe
+    probe.subscribe("/particlecloud", "geometry_msgs/PoseArray")
+    start = probe.count("/particlecloud")
+    probe.call("/global_localization")
+    cloud = probe.wait_for_message("/particlecloud", "geometry_msgs/PoseArray", timeout=30, start=start,
+                                   where=lambda cloud: len(cloud["poses"]) == 3000)  # max_particles
+    xs = [pose["position"]["x"] for pose in cloud["poses"]]
+    ys = [pose["position"]["y"] for pose in cloud["poses"]]
+    assert max(xs) - min(xs) > 5.0 and max(ys) - min(ys) > 4.0  # over the whole map
+    # Give the robot its pose back for the tests that follow.
+    probe.publish("/initialpose", "geometry_msgs/PoseWithCovarianceStamped",
+                  {"header": {"frame_id": "map"}, "pose": {"pose": pose_stamped(*true_pose(probe))["pose"]}})
+
+
+def test_map_server_without_a_map_exits_with_a_clear_message(navigation):
+    missing = navigation.workdir / "no-such-map.yaml"
+    process = navigation.rosrun("turtlebot3c_maps", "map_server", missing, "__name:=map_server_missing")
+    wait_until(lambda: not process.running(), 30, "map_server kept running without a map")
+    assert process.popen.returncode != 0
+    assert f"cannot read map file {missing}" in process.log_text()

@@ -1,0 +1,369 @@
+"""The SLAM core: geometry, grids, matching, pose graph, and whole runs in the simulator against ground truth."""
+import math
+
+import numpy as np
+import pytest
+
+from turtlebot3c_common.se2 import compose, inverse, relative, transform_points
+from turtlebot3c_sim.evaluation import (
+    ROUTES,
+    absolute_trajectory_error,
+    cell_agreement,
+    drive_route,
+    occupied_precision,
+)
+from turtlebot3c_sim.simulation import NoiseConfig, Simulation
+from turtlebot3c_sim.world import load_world
+from turtlebot3c_slam.occupancy_grid import LogOddsGrid, trace_scan
+from turtlebot3c_slam.pose_graph import PoseGraph
+from turtlebot3c_slam.scan_matcher import GridMatcher, likelihood_field
+from turtlebot3c_slam.slam import Slam, SlamConfig, check_slam_method
+from turtlebot3c_slam.slam_messages import interpolate_pose, mount_from_transform
+from turtlebot3c_slam.slam_scan import ScanGeometry, scan_rays
+
+# --- plane geometry and scans ----------------------------------------------------------------
+
+
+def test_compose_inverse_and_between_agree():
+    a, b = (1.0, -2.0, 0.7), (0.3, 0.4, -2.9)
+    assert compose(a, inverse(a)) == pytest.approx((0.0, 0.0, 0.0), abs=1e-12)
+    assert compose(a, relative(a, b)) == pytest.approx(b)
+    assert transform_points(a, [[0.3, 0.4]])[0] == pytest.approx(compose(a, b)[:2])
+
+
+def test_ranges_are_read_as_hits_free_rays_or_nothing_for_any_geometry():
+    # 180 beams over 180 degrees, a long-range LIDAR mounted backwards at x = 0.1.
+    geometry = ScanGeometry(-math.pi / 2, math.pi / 179, 180, 0.1, 80.0, mount=(0.1, 0.0, math.pi))
+    ranges = np.full(180, np.nan)
+    ranges[0] = 2.0        # hit
+    ranges[1] = np.inf     # nothing in reach: free up to the usable range
+    ranges[2] = 0.0        # driver's "no measurement"
+    ranges[3] = 0.05       # below range_min
+    ranges[4] = 80.0       # at range_max: no return
+    ranges[5] = 50.0       # a hit beyond the usable range: free up to it, not a wall
+    ranges[6] = -np.inf
+    rays = scan_rays(geometry, ranges, usable_range=8.0)
+    assert len(rays.hits) == 1
+    # Beam 0 points at -90 degrees in the scan frame, +90 degrees on the backwards mount.
+    assert rays.hits[0] == pytest.approx([0.1, 2.0], abs=1e-9)
+    assert len(rays.free_ends) == 3
+    assert np.hypot(*(rays.free_ends - [0.1, 0.0]).T) == pytest.approx([8.0, 8.0, 8.0])
+
+
+def test_upside_down_mount_turns_beams_clockwise():
+    geometry = ScanGeometry(0.0, math.pi / 2, 4, 0.1, 10.0, upside_down=True)
+    rays = scan_rays(geometry, [1.0, 2.0, np.nan, np.nan], usable_range=10.0)
+    assert rays.hits == pytest.approx(np.array([[1.0, 0.0], [0.0, -2.0]]), abs=1e-12)
+
+
+def test_scan_with_wrong_number_of_ranges_is_rejected():
+    geometry = ScanGeometry(0.0, 0.1, 10, 0.1, 10.0)
+    with pytest.raises(ValueError, match="3 ranges, its geometry 10"):
+        scan_rays(geometry, [1.0, 2.0, 3.0], 8.0)
+
+
+class _Vector:
+    def __init__(self, x=0.0, y=0.0, z=0.0, w=1.0):
+        self.x, self.y, self.z, self.w = x, y, z, w
+
+
+class _Transform:
+    def __init__(self, translation, rotation):
+        self.translation, self.rotation = _Vector(*translation), _Vector(*rotation)
+
+
+def test_lidar_mount_from_tf_knows_yaw_and_upside_down():
+    half = math.sqrt(0.5)
+    turned = mount_from_transform(_Transform((0.1, 0.02, 0.2), (0.0, 0.0, half, half)))  # yaw +90 degrees
+    assert turned == pytest.approx((0.1, 0.02, math.pi / 2, False))
+    flipped = mount_from_transform(_Transform((0.0, 0.0, 0.2), (1.0, 0.0, 0.0, 0.0)))  # roll 180 degrees
+    assert flipped[2] == pytest.approx(0.0) and flipped[3] is True
+
+
+def test_odometry_between_messages_is_interpolated_the_short_way_round():
+    before, after = (0.0, 0.0, math.pi - 0.1), (1.0, 2.0, -math.pi + 0.1)
+    x, y, yaw = interpolate_pose(before, after, 0.25)
+    assert (x, y) == pytest.approx((0.25, 0.5))
+    assert math.cos(yaw) == pytest.approx(math.cos(math.pi - 0.05))
+    assert math.sin(yaw) == pytest.approx(math.sin(math.pi - 0.05))
+
+
+# --- grids ------------------------------------------------------------------------------------
+
+
+def wall_scan():
+    """A 180-beam scan from the origin of a wall at x = 1 (y in -1..1), as rays."""
+    geometry = ScanGeometry(-math.pi / 4, math.pi / 2 / 179, 180, 0.1, 10.0)
+    angles = -math.pi / 4 + np.arange(180) * math.pi / 2 / 179
+    return scan_rays(geometry, 1.0 / np.cos(angles), usable_range=8.0)
+
+
+def test_scan_marks_hit_cells_occupied_and_cells_before_them_free():
+    grid = LogOddsGrid(0.05)
+    grid.apply(trace_scan(wall_scan(), (0.0, 0.0, 0.0), 0.05))
+    occupancy = grid.to_occupancy_map()
+    ox, oy = occupancy.origin[:2]
+
+    def cell(x, y):
+        row, col = int(math.floor((y - oy) / 0.05)), int(math.floor((x - ox) / 0.05))
+        inside = 0 <= row < occupancy.height and 0 <= col < occupancy.width
+        return occupancy.data[row, col] if inside else -1
+    assert cell(1.01, 0.0) == 100
+    assert cell(0.5, 0.0) == 0
+    assert cell(0.5, 0.2) == 0
+    assert cell(1.2, 0.0) == -1  # behind the wall: never seen
+    assert cell(-0.5, 0.0) == -1  # outside the field of view
+
+
+def occupied_cell_centres_x(occupancy):
+    _, cols = np.nonzero(occupancy.data == 100)
+    return occupancy.origin[0] + (cols + 0.5) * occupancy.resolution
+
+
+def test_a_wall_on_the_lattice_is_drawn_in_the_cells_centred_on_it_when_cells_are_shifted_half_a_cell():
+    centred = LogOddsGrid(0.05, cell_shift=0.5)
+    centred.add_scan(wall_scan(), (0.0, 0.0, 0.0))
+    centres = occupied_cell_centres_x(centred.to_occupancy_map())
+    assert centres.size > 0 and centres == pytest.approx(np.ones(centres.size))
+    # With cell corners on the lattice, the wall at x = 1 is a cell edge: drawn half a cell off.
+    cornered = LogOddsGrid(0.05)
+    cornered.add_scan(wall_scan(), (0.0, 0.0, 0.0))
+    assert np.abs(occupied_cell_centres_x(cornered.to_occupancy_map()) - 1.0).min() == pytest.approx(0.025)
+
+
+def test_the_published_map_has_a_cell_centred_on_the_map_frame_origin():
+    slam = Slam()
+    geometry = ScanGeometry(-math.pi / 4, math.pi / 2 / 179, 180, 0.1, 10.0)
+    angles = -math.pi / 4 + np.arange(180) * math.pi / 2 / 179
+    slam.add_scan(0.0, 1.0 / np.cos(angles), geometry, (0.0, 0.0, 0.0))
+    occupancy = slam.occupancy_map()
+    corner_in_cells = np.array(occupancy.origin[:2]) / occupancy.resolution
+    assert corner_in_cells - np.floor(corner_in_cells) == pytest.approx([0.5, 0.5])
+    centres = occupied_cell_centres_x(occupancy)
+    assert centres.size > 0 and centres == pytest.approx(np.ones(centres.size))
+
+
+def test_taking_back_a_scan_restores_the_grid_exactly():
+    grid = LogOddsGrid(0.05)
+    first = trace_scan(wall_scan(), (0.0, 0.0, 0.0), 0.05)
+    second = trace_scan(wall_scan(), (0.2, 0.1, 0.3), 0.05)
+    grid.apply(first)
+    before = grid.observations.copy(), grid.hit_counts.copy()
+    grid.apply(second)
+    grid.apply(second, sign=-1)
+    assert np.array_equal(grid.observations, before[0])
+    assert np.array_equal(grid.hit_counts, before[1])
+
+
+def test_matcher_finds_a_shifted_and_turned_scan():
+    grid = LogOddsGrid(0.025)
+    room = room_rays()
+    grid.apply(trace_scan(room, (0.0, 0.0, 0.0), 0.025))
+    low = np.array([-120, -120])
+    strength, offsets = grid.occupancy_strength(low, np.array([240, 240]))
+    matcher = GridMatcher(likelihood_field(strength, offsets), low, 0.025, levels=3)
+    truth = (0.07, -0.04, 0.05)
+    # The room seen from `truth` is the room's points moved by truth's inverse.
+    points = transform_points(inverse(truth), room.hits)
+    result = matcher.match(points, (0.0, 0.0, 0.0), 0.2, 0.1)
+    assert result.pose == pytest.approx(truth, abs=0.026)
+    assert result.score > 0.8
+
+
+def test_prior_keeps_the_predicted_position_along_a_featureless_corridor():
+    geometry = ScanGeometry(-math.pi, 2 * math.pi / 360, 360, 0.1, 3.5)
+    angles = -math.pi + np.arange(360) * 2 * math.pi / 360
+    with np.errstate(divide="ignore"):
+        ranges = np.abs(0.5 / np.sin(angles))  # walls at y = +-0.5, endless along x
+    rays = scan_rays(geometry, np.where(ranges < 3.5, ranges, np.inf), 8.0)
+    grid = LogOddsGrid(0.025)
+    grid.apply(trace_scan(rays, (0.0, 0.0, 0.0), 0.025))
+    low = np.array([-160, -40])
+    strength, offsets = grid.occupancy_strength(low, np.array([320, 80]))
+    matcher = GridMatcher(likelihood_field(strength, offsets), low, 0.025, levels=3)
+    prior = (0.03, 0.0, 0.0)
+    result = matcher.match(rays.hits, prior, 0.1, 0.05, prior_sigmas=(0.05, 0.05))
+    assert result.pose[0] == pytest.approx(0.03, abs=1e-9)
+    assert result.pose[1] == pytest.approx(0.0, abs=0.026)
+
+
+def room_rays():
+    """A 4 x 3 m room with a pillar, seen from the origin: 360 beams."""
+    world = load_world_from_text()
+    angles = np.arange(360) * 2 * math.pi / 360
+    ranges = world.raycast(0.0, 0.0, angles, 3.5)
+    geometry = ScanGeometry(0.0, 2 * math.pi / 360, 360, 0.1, 3.5)
+    return scan_rays(geometry, ranges, 8.0)
+
+
+def load_world_from_text():
+    from turtlebot3c_sim.world import world_from_description
+    return world_from_description({"name": "room", "obstacles": [
+        {"type": "wall", "from": [-2.0, -1.5], "to": [2.0, -1.5], "thickness": 0.1},
+        {"type": "wall", "from": [2.0, -1.5], "to": [2.0, 1.5], "thickness": 0.1},
+        {"type": "wall", "from": [2.0, 1.5], "to": [-2.0, 1.5], "thickness": 0.1},
+        {"type": "wall", "from": [-2.0, 1.5], "to": [-2.0, -1.5], "thickness": 0.1},
+        {"type": "circle", "center": [0.8, 0.6], "radius": 0.2},
+        {"type": "box", "center": [-1.2, -0.9], "size": [0.5, 0.3]}]})
+
+
+# --- pose graph -------------------------------------------------------------------------------
+
+
+def test_pose_graph_jacobians_match_finite_differences():
+    graph = PoseGraph()
+    for pose in [(0.0, 0.0, 0.0), (1.0, 0.2, 0.4), (1.5, 1.1, 2.0)]:
+        graph.add_node(pose)
+    graph.add_edge(1, 2, (0.7, 0.5, 1.5), np.eye(3))
+    i, j, z = np.array([1]), np.array([2]), np.array([[0.7, 0.5, 1.5]])
+    _, a, b = graph._errors_and_jacobians(i, j, z)
+    for node, jacobian in ((1, a[0]), (2, b[0])):
+        for k in range(3):
+            step = np.zeros(3)
+            step[k] = 1e-6
+            graph.poses[node] += step
+            plus = graph._errors_and_jacobians(i, j, z)[0][0]
+            graph.poses[node] -= 2 * step
+            minus = graph._errors_and_jacobians(i, j, z)[0][0]
+            graph.poses[node] += step
+            assert (plus - minus) / 2e-6 == pytest.approx(jacobian[:, k], abs=1e-5)
+
+
+def test_loop_edge_pulls_a_drifted_square_back_together():
+    truth = [(0.0, 0.0, 0.0), (1.0, 0.0, math.pi / 2), (1.0, 1.0, math.pi), (0.0, 1.0, -math.pi / 2)]
+    graph, drifted = PoseGraph(), [truth[0]]
+    odometry = [relative(truth[k], truth[k + 1]) for k in range(3)]
+    for step in odometry:
+        drifted.append(compose(drifted[-1], (step[0] * 1.05, step[1], step[2] + 0.05)))
+    for pose in drifted:
+        graph.add_node(pose)
+    information = np.diag([100.0, 100.0, 400.0])
+    for k in range(3):
+        graph.add_edge(k, k + 1, relative(drifted[k], drifted[k + 1]), information)
+    graph.add_edge(3, 0, relative(truth[3], truth[0]), information * 10, robust=True)
+    before = graph.chi2()
+    graph.optimize()
+    assert graph.chi2() < before / 10
+    error = np.hypot(*(graph.poses[3, :2] - truth[3][:2]))
+    assert error < np.hypot(*(np.array(drifted[3][:2]) - truth[3][:2])) / 2
+
+
+# --- configuration ----------------------------------------------------------------------------
+
+
+def test_unknown_or_bad_slam_parameters_are_rejected_with_their_names():
+    with pytest.raises(ValueError, match="unknown SLAM parameter.*particles"):
+        SlamConfig(particles=30)
+    with pytest.raises(ValueError, match="resolution must be positive"):
+        SlamConfig(resolution=0)
+    with pytest.raises(ValueError, match="local_map_keyframes must be a positive integer"):
+        SlamConfig(local_map_keyframes=2.5)
+
+
+def test_slam_methods_map_to_upstream_node_names_and_unknown_ones_list_the_known():
+    assert check_slam_method("gmapping") == "turtlebot3_slam_gmapping"
+    assert check_slam_method("karto") == "slam_karto"
+    with pytest.raises(ValueError, match="unknown slam_methods 'hector': known methods are gmapping, karto"):
+        check_slam_method("hector")
+
+
+# --- whole runs in the simulator --------------------------------------------------------------
+
+
+def simulated_run(world_name, route, scan=None, seed=1, noise=None, model="burger"):
+    """Drive a route in the simulator, feeding SLAM; returns (slam, true poses per scan, odometry per scan)."""
+    world = load_world(world_name)
+    sim = Simulation(world, model=model, pose=world.spawn_pose, seed=seed, noise=noise or NoiseConfig())
+    mount = sim.model.scan_mount
+    slam, truth, odometry = Slam(SlamConfig()), [], []
+    scan = scan or default_scan
+
+    def on_scan(simulation):
+        geometry, ranges = scan(simulation, world, (mount[0], mount[1], 0.0))
+        odom = simulation.odometry[:3]
+        slam.add_scan(simulation.time, ranges, geometry, odom)
+        truth.append(simulation.pose)
+        odometry.append(odom)
+    assert drive_route(sim, route, 0.2, on_scan, timeout=1200), "the route hit an obstacle"
+    return slam, world, truth, odometry
+
+
+def default_scan(simulation, world, mount):
+    scan = simulation.scan()
+    geometry = ScanGeometry(scan.angle_min, scan.angle_increment, len(scan.ranges), scan.range_min, scan.range_max,
+                            mount)
+    return geometry, scan.ranges
+
+
+def map_quality(slam, world, truth):
+    occupancy_map = slam.occupancy_map()
+    occupied = world.rasterize(occupancy_map.resolution, occupancy_map.origin[:2], occupancy_map.width,
+                               occupancy_map.height)
+    ate = absolute_trajectory_error([pose[1:] for pose in slam.trajectory()], truth)[0]
+    return cell_agreement(occupancy_map.data, occupied), occupied_precision(occupancy_map.data, occupied), ate
+
+
+def test_map_of_turtlebot3_world_matches_ground_truth_despite_odometry_drift():
+    slam, world, truth, odometry = simulated_run("turtlebot3_world", ROUTES["turtlebot3_world"])
+    agreement, precision, ate = map_quality(slam, world, truth)
+    odometry_error = absolute_trajectory_error(odometry, truth)[0]
+    assert agreement >= 0.95
+    assert precision >= 0.95
+    assert ate <= 0.05
+    assert ate < odometry_error
+    x, y, yaw = compose(slam.map_to_odom, odometry[-1])
+    assert (x, y, yaw) == pytest.approx(slam.pose)
+
+
+@pytest.fixture(scope="module")
+def house_run():
+    """The house loop driven twice as far off by odometry as the simulator's default, three times."""
+    return simulated_run("house", ROUTES["house"], noise=NoiseConfig()._replace(
+        odom_linear_drift=0.03, odom_angular_drift=0.03, wheel_slip=0.015))
+
+
+def test_redrawing_the_map_outside_the_slam_gives_the_same_map_unless_keyframes_moved_again(house_run):
+    slam = house_run[0]
+    assert slam.map_outdated  # the last loop closure moved keyframes
+    stale = slam.map_rebuild()
+    stale.run()
+    slam._optimize()  # another loop closure meanwhile
+    assert not slam.adopt(stale)
+    fresh = slam.map_rebuild()
+    fresh.run()
+    assert slam.adopt(fresh)
+    assert not slam.map_outdated
+    redrawn_in_place = Slam(slam.config)
+    redrawn_in_place.keyframes, redrawn_in_place.graph = slam.keyframes, slam.graph
+    redrawn_in_place._global_dirty = True
+    assert redrawn_in_place.occupancy_map() == slam.occupancy_map()
+
+
+def test_house_loop_closes_without_a_doubled_wall(house_run):
+    slam, world, truth, _ = house_run
+    agreement, precision, ate = map_quality(slam, world, truth)
+    assert slam.loop_closures
+    assert precision >= 0.97  # a doubled wall would put many occupied cells off every true wall
+    assert agreement >= 0.95
+    assert ate <= 0.06
+
+
+def half_circle_long_range_scan(simulation, world, mount):
+    """180 beams over 180 degrees (forward half), 80 m range, with NaN and zero (no measurement) returns."""
+    geometry = ScanGeometry(-math.pi / 2, math.pi / 179, 180, 0.05, 80.0, mount)
+    x, y, yaw = simulation.scan_pose()
+    angles = -math.pi / 2 + np.arange(180) * math.pi / 179
+    ranges = world.raycast(x, y, yaw + angles, 80.0)
+    rng = np.random.RandomState(int(simulation.time * 1000) % 2 ** 31)
+    ranges = ranges + rng.normal(0.0, 0.01, 180)
+    ranges[rng.rand(180) < 0.05] = np.nan
+    ranges[rng.rand(180) < 0.05] = 0.0
+    return geometry, ranges
+
+
+def test_any_scan_geometry_maps_the_house_half_circle_lidar_with_long_range_and_dropouts():
+    slam, world, truth, _ = simulated_run("house", ROUTES["house"][:12], scan=half_circle_long_range_scan)
+    agreement, precision, ate = map_quality(slam, world, truth)
+    assert agreement >= 0.95
+    assert precision >= 0.95
+    assert ate <= 0.05

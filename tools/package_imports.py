@@ -1,0 +1,78 @@
+"""What each catkin package of the workspace uses: the modules its Python imports, the packages
+its launch files run or include, and the commands its code runs by name.
+
+Read by check_rosdep.py (each package.xml must list exactly what its package uses) and by
+package_graph.py. Plain text and ast only: needs neither ROS nor a build.
+"""
+import ast
+import re
+import sys
+from pathlib import Path
+
+# Imports that are rosdep keys of another name (the rest of the third-party imports are ROS
+# packages, named as they are imported).
+ROSDEP_KEY_OF_MODULE = {
+    "numpy": "python3-numpy",
+    "scipy": "python3-scipy",
+    "yaml": "python3-yaml",
+    "serial": "python3-serial",
+    "rosbags": "python3-rosbags-pip",
+}
+# Modules that come with a package we depend on under another name.
+PACKAGE_OF_MODULE = {"termios": None, "tty": None}
+STANDARD_LIBRARY = set(getattr(sys, "stdlib_module_names", ())) | {"__future__"}
+LAUNCH_PACKAGE = re.compile(r'pkg="([A-Za-z0-9_]+)"|\$\(find ([A-Za-z0-9_]+)\)')
+LAUNCH_XACRO = re.compile(r'command="xacro\b')
+COMMAND_RUN = re.compile(r'\[\s*"(rosbag|rosrun|roslaunch|rostopic|xacro)"')
+
+
+def python_files(package_dir):
+    """The package's Python: its modules under src/ and its executables under nodes/."""
+    files = sorted((package_dir / "src").rglob("*.py")) if (package_dir / "src").is_dir() else []
+    if (package_dir / "nodes").is_dir():
+        files += sorted(path for path in (package_dir / "nodes").iterdir() if path.is_file())
+    return files
+
+
+def imported_modules(path):
+    """Top-level names of the absolute imports in one Python file."""
+    modules = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            modules.update(alias.name.split(".")[0] for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            modules.add(node.module.split(".")[0])
+    return modules
+
+
+def launch_packages(package_dir):
+    """Packages the launch files run nodes of, find, or call (xacro)."""
+    used = set()
+    for launch in sorted((package_dir / "launch").glob("*.launch")) if (package_dir / "launch").is_dir() else []:
+        text = launch.read_text()
+        used.update(first or second for first, second in LAUNCH_PACKAGE.findall(text))
+        if LAUNCH_XACRO.search(text):
+            used.add("xacro")
+    return used
+
+
+def used_keys(package_dir):
+    """{rosdep key or package name: why} for everything the package uses."""
+    used = {}
+    for path in python_files(package_dir):
+        where = path.relative_to(package_dir)
+        for module in imported_modules(path) - STANDARD_LIBRARY:
+            key = ROSDEP_KEY_OF_MODULE.get(module, module)
+            used.setdefault(key, f"imported by {where}")
+        for command in COMMAND_RUN.findall(path.read_text()):
+            used.setdefault(command if command != "rostopic" else "rostopic", f"run by {where}")
+    for package in launch_packages(package_dir):
+        used.setdefault(package, "in its launch files")
+    used.pop(package_dir.name, None)
+    used.pop("catkin_pkg", None)  # setup.py's, at build time: catkin (the buildtool) brings it
+    return used
+
+
+def workspace_packages(src):
+    """{package name: folder} of the catkin packages under src (a folder with package.xml)."""
+    return {path.parent.name: path.parent for path in sorted(Path(src).glob("*/package.xml"))}
