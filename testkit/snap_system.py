@@ -36,11 +36,12 @@ class SnapSystem:
             (self.root / "etc" / "environment").write_text(
                 "".join(f"{key}={value}\n" for key, value in etc_environment.items()))
         self.env = user_environment()
+        self.command = [str(SNAPSIM)]  # or another interpreter's `python3 -m snapsim`
         if build_dir is not None:
             self.env["TURTLEBOT3C_BUILD_DIR"] = str(build_dir)
 
     def snapsim(self, *args, check=True, env=None, timeout=240, input=None):
-        done = subprocess.run([str(SNAPSIM), "--root", str(self.root)] + [str(arg) for arg in args],
+        done = subprocess.run(self.command + ["--root", str(self.root)] + [str(arg) for arg in args],
                               env=dict(self.env, **(env or {})), capture_output=True, text=True,
                               timeout=timeout, input=input)
         if check and done.returncode != 0:

@@ -118,17 +118,18 @@ def test_nothing_is_written_outside_the_root(system, project, tmp_path):
 
 
 def virtualenv_seeing_our_packages(folder):
-    """A virtualenv other than the project's, whose python3 imports what ours does (PyYAML...)."""
+    """A virtualenv other than the project's, whose python3 imports what ours does (PyYAML..., snapsim)."""
     subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(folder)], check=True, timeout=120)
     [site_packages] = folder.glob("lib/python3*/site-packages")
-    ours = [path for path in sys.path if path.endswith(("site-packages", "dist-packages"))]
+    ours = [path for path in sys.path if path.endswith(("site-packages", "dist-packages"))] + [str(ros_harness.REPO)]
     (site_packages / "ours.pth").write_text("".join(f"{path}\n" for path in ours))
     return folder
 
 
 def test_services_a_hook_restarts_keep_the_virtualenv_snapsim_runs_in(system, project, tmp_path):
     venv = virtualenv_seeing_our_packages(tmp_path / "other-venv")
-    started_by_it = {"PATH": f"{venv / 'bin'}:/usr/bin:/bin"}  # its python3 runs snapsim
+    system.command = [str(venv / "bin" / "python3"), "-m", "snapsim"]  # snapsim run by its python3
+    started_by_it = {"PATH": f"{venv / 'bin'}:/usr/bin:/bin"}
     system.snapsim("install", project, "--dangerous", env=started_by_it)
     first = system.wait_state("demo", "svc", ["active"])["main_pid"]
     main_pid_file = system.root / "var/snap/demo/common/main.pid"
