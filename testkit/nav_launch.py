@@ -26,7 +26,7 @@ def write_world_map(folder):
 
 def launch_simulated_robot(master, world_file=None):
     """The simulator (in `world_file` if given, else turtlebot3_world), the burger's bringup
-    (simulation:=true) and the teleop mux on `master`: a robot for the 2dnav launches."""
+    (simulation:=true) and the teleop mux on `master`: a robot for the mapping and navigation launches."""
     world = [f"world:={world_file}"] if world_file else []
     master.launch("turtlebot3c_sim", "turtlebot3_world.launch", "model:=burger", *world)
     master.launch("turtlebot3c_bringup", "turtlebot3c_bringup.launch", "simulation:=true", "model:=burger")
