@@ -3,26 +3,15 @@
 Each is a ros_harness.Process: its own session, its output in a log file, stopped with all
 its descendants (roslaunch's children too).
 """
-import time
 from pathlib import Path
 
-from .ros_harness import Process
+from .ros_harness import Process, master_answers
+from .waiting import wait_until
 
 
 def wait_for_master(uri, timeout=60.0):
-    """Until the master at `uri` answers getSystemState."""
-    import xmlrpc.client
-    deadline = time.monotonic() + timeout
-    while True:
-        try:
-            code, _, _ = xmlrpc.client.ServerProxy(uri).getSystemState("/turtlebot3c_demo")
-            if code == 1:
-                return
-        except OSError:
-            pass
-        if time.monotonic() > deadline:
-            raise TimeoutError(f"no ROS master answered at {uri} within {timeout:.0f} s")
-        time.sleep(0.2)
+    """Until the master at `uri` answers."""
+    wait_until(lambda: master_answers(uri), timeout, f"no ROS master answered at {uri}", interval=0.2)
 
 
 def background(args, log, env):

@@ -173,6 +173,14 @@ def kill_marked_processes(run_id=RUN_ID):
     return pids
 
 
+def master_answers(uri):
+    """Whether a ROS master answers at `uri` now."""
+    try:
+        return xmlrpc.client.ServerProxy(uri).getPid("/turtlebot3c_test")[0] == 1
+    except OSError:
+        return False
+
+
 class RosMaster:
     """A roscore on a free port, with helpers to start nodes and launch files against it."""
 
@@ -196,10 +204,7 @@ class RosMaster:
                    lambda: f"roscore on port {self.port} did not come up:\n{self.core.log_text()[-2000:]}")
 
     def is_up(self):
-        try:
-            return self.master_api().getPid("/test")[0] == 1
-        except OSError:
-            return False
+        return master_answers(self.uri)
 
     def master_api(self):
         return xmlrpc.client.ServerProxy(self.uri)

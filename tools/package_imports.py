@@ -7,7 +7,6 @@ package_graph.py. Plain text and ast only: needs neither ROS nor a build.
 import ast
 import re
 import sys
-from pathlib import Path
 
 # Imports that are rosdep keys of another name (the rest of the third-party imports are ROS
 # packages, named as they are imported).
@@ -18,26 +17,25 @@ ROSDEP_KEY_OF_MODULE = {
     "serial": "python3-serial",
     "rosbags": "python3-rosbags-pip",
 }
-# Modules that come with a package we depend on under another name.
-PACKAGE_OF_MODULE = {"termios": None, "tty": None}
 STANDARD_LIBRARY = set(getattr(sys, "stdlib_module_names", ())) | {"__future__"}
 LAUNCH_PACKAGE = re.compile(r'pkg="([A-Za-z0-9_]+)"|\$\(find ([A-Za-z0-9_]+)\)')
 LAUNCH_XACRO = re.compile(r'command="xacro\b')
-COMMAND_RUN = re.compile(r'\[\s*"(rosbag|rosrun|roslaunch|rostopic|xacro)"')
+# Commands the code runs by name (the first word of an argv list), and the package each comes from.
+PACKAGE_OF_COMMAND = {"rosbag": "rosbag", "rosrun": "rosbash", "roslaunch": "roslaunch", "rostopic": "rostopic",
+                      "xacro": "xacro"}
+COMMAND_RUN = re.compile(r'\[\s*"({})"'.format("|".join(PACKAGE_OF_COMMAND)))
 
 
 def python_files(package_dir):
     """The package's Python: its modules under src/ and its executables under nodes/."""
-    files = sorted((package_dir / "src").rglob("*.py")) if (package_dir / "src").is_dir() else []
-    if (package_dir / "nodes").is_dir():
-        files += sorted(path for path in (package_dir / "nodes").iterdir() if path.is_file())
-    return files
+    return sorted(package_dir.glob("src/**/*.py")) + sorted(path for path in package_dir.glob("nodes/*")
+                                                            if path.is_file())
 
 
-def imported_modules(path):
-    """Top-level names of the absolute imports in one Python file."""
+def imported_modules(source, filename):
+    """Top-level names of the absolute imports in one Python source."""
     modules = set()
-    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+    for node in ast.walk(ast.parse(source, filename)):
         if isinstance(node, ast.Import):
             modules.update(alias.name.split(".")[0] for alias in node.names)
         elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
@@ -48,7 +46,7 @@ def imported_modules(path):
 def launch_packages(package_dir):
     """Packages the launch files run nodes of, find, or call (xacro)."""
     used = set()
-    for launch in sorted((package_dir / "launch").glob("*.launch")) if (package_dir / "launch").is_dir() else []:
+    for launch in sorted(package_dir.glob("launch/*.launch")):
         text = launch.read_text()
         used.update(first or second for first, second in LAUNCH_PACKAGE.findall(text))
         if LAUNCH_XACRO.search(text):
@@ -61,18 +59,13 @@ def used_keys(package_dir):
     used = {}
     for path in python_files(package_dir):
         where = path.relative_to(package_dir)
-        for module in imported_modules(path) - STANDARD_LIBRARY:
-            key = ROSDEP_KEY_OF_MODULE.get(module, module)
-            used.setdefault(key, f"imported by {where}")
-        for command in COMMAND_RUN.findall(path.read_text()):
-            used.setdefault(command if command != "rostopic" else "rostopic", f"run by {where}")
+        source = path.read_text()
+        for module in imported_modules(source, str(path)) - STANDARD_LIBRARY:
+            used.setdefault(ROSDEP_KEY_OF_MODULE.get(module, module), f"imported by {where}")
+        for command in COMMAND_RUN.findall(source):
+            used.setdefault(PACKAGE_OF_COMMAND[command], f"run by {where}")
     for package in launch_packages(package_dir):
         used.setdefault(package, "in its launch files")
     used.pop(package_dir.name, None)
     used.pop("catkin_pkg", None)  # setup.py's, at build time: catkin (the buildtool) brings it
     return used
-
-
-def workspace_packages(src):
-    """{package name: folder} of the catkin packages under src (a folder with package.xml)."""
-    return {path.parent.name: path.parent for path in sorted(Path(src).glob("*/package.xml"))}

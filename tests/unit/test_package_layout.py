@@ -2,14 +2,13 @@
 and the planar pose maths exists once."""
 import ast
 import runpy
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-GRAPH = REPO / "tools" / "package_graph.py"
+PACKAGE_GRAPH = runpy.run_path(str(REPO / "tools" / "package_graph.py"))  # the tool's functions
+GRAPH = PACKAGE_GRAPH["read_dependencies"](REPO / "src")
 # Each package above those it may depend on; the simulator (tests only) may use any.
 LAYERS = [
     {"turtlebot3c_common", "turtlebot3c_description"},
@@ -20,9 +19,7 @@ LAYERS = [
 
 
 def closure(package):
-    done = subprocess.run([sys.executable, str(GRAPH), str(REPO / "src"), "--closure", package],
-                          capture_output=True, text=True, check=True)
-    return set(done.stdout.split())
+    return set(PACKAGE_GRAPH["closure"](GRAPH, package))
 
 
 def layer_of(package):
@@ -30,10 +27,9 @@ def layer_of(package):
 
 
 def test_every_package_is_in_a_layer_and_depends_only_on_lower_layers():
-    graph = runpy.run_path(str(GRAPH))["read_dependencies"](REPO / "src")
-    assert set(graph) == set().union(*LAYERS)
-    for package, keys in graph.items():
-        for dependency in set(keys) & set(graph):
+    assert set(GRAPH) == set().union(*LAYERS)
+    for package, keys in GRAPH.items():
+        for dependency in set(keys) & set(GRAPH):
             assert layer_of(dependency) < layer_of(package), f"{package} depends on {dependency}"
 
 
