@@ -36,12 +36,16 @@ class SnapSystem:
             (self.root / "etc" / "environment").write_text(
                 "".join(f"{key}={value}\n" for key, value in etc_environment.items()))
         self.env = user_environment()
-        self.command = [str(SNAPSIM)]  # or another interpreter's `python3 -m snapsim`
+        self.snapsim_program = [str(SNAPSIM)]  # or another interpreter's `python3 -m snapsim`
         if build_dir is not None:
             self.env["TURTLEBOT3C_BUILD_DIR"] = str(build_dir)
 
+    def command(self, *args):
+        """The command line that runs `snap ARGS` on this system."""
+        return self.snapsim_program + ["--root", str(self.root)] + [str(arg) for arg in args]
+
     def snapsim(self, *args, check=True, env=None, timeout=240, input=None):
-        done = subprocess.run(self.command + ["--root", str(self.root)] + [str(arg) for arg in args],
+        done = subprocess.run(self.command(*args),
                               env=dict(self.env, **(env or {})), capture_output=True, text=True,
                               timeout=timeout, input=input)
         if check and done.returncode != 0:

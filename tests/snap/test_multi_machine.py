@@ -21,7 +21,7 @@ import pytest
 from testkit import ros_harness
 from testkit.pty_session import PtySession
 from testkit.ros_harness import Process, RosProbe, wait_until
-from testkit.snap_system import REPO, SNAPSIM, SnapSystem
+from testkit.snap_system import REPO, SnapSystem
 
 ODOMETRY = "nav_msgs/Odometry"
 SUFFIX = str(os.getpid() % 100000)
@@ -85,17 +85,7 @@ class HostSnapSystem(SnapSystem):
     def __init__(self, host, root, build_dir):
         super().__init__(root, build_dir=build_dir)
         self.host = host
-
-    def command(self, *args):
-        return self.host.prefix + [str(SNAPSIM), "--root", str(self.root)] + [str(arg) for arg in args]
-
-    def snapsim(self, *args, check=True, env=None, timeout=240, input=None):
-        done = subprocess.run(self.command(*args), env=dict(self.env, **(env or {})), capture_output=True,
-                              text=True, timeout=timeout, input=input)
-        if check and done.returncode != 0:
-            raise AssertionError(f"snapsim {' '.join(map(str, args))} on {self.host.hostname} failed "
-                                 f"({done.returncode}):\n{done.stdout}\n{done.stderr}")
-        return done
+        self.snapsim_program = host.prefix + self.snapsim_program
 
 
 class RemoteGraph:

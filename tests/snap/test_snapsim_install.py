@@ -128,7 +128,7 @@ def virtualenv_seeing_our_packages(folder):
 
 def test_services_a_hook_restarts_keep_the_virtualenv_snapsim_runs_in(system, project, tmp_path):
     venv = virtualenv_seeing_our_packages(tmp_path / "other-venv")
-    system.command = [str(venv / "bin" / "python3"), "-m", "snapsim"]  # snapsim run by its python3
+    system.snapsim_program = [str(venv / "bin" / "python3"), "-m", "snapsim"]  # snapsim run by its python3
     started_by_it = {"PATH": f"{venv / 'bin'}:/usr/bin:/bin"}
     system.snapsim("install", project, "--dangerous", env=started_by_it)
     first = system.wait_state("demo", "svc", ["active"])["main_pid"]
