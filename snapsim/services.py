@@ -40,7 +40,40 @@ def is_active(layout, snap, app):
 
 
 def daemons(snap_info):
-    return [name for name, app in snap_info.get("apps", {}).items() if "daemon" in app]
+    """The snap's services in snapd's start order: each after those it names in `after` and those
+    naming it in `before` (systemd's After=/Before= between the snap's units), else by name.
+    Stopping goes in the reverse order. Ordering only: starting one service starts no other."""
+    apps = snap_info.get("apps", {})
+    names = sorted(name for name, app in apps.items() if "daemon" in app)
+    earlier = {name: set() for name in names}
+    for name in names:
+        for key in ("after", "before"):
+            for other in apps[name].get(key) or []:
+                if other not in earlier:
+                    raise SnapError(f'cannot validate snap "{snap_info.get("name")}": '
+                                    f'invalid definition of application "{name}": '
+                                    f'{key} references app "{other}", which is not a service')
+                if key == "after":
+                    earlier[name].add(other)
+                else:
+                    earlier[other].add(name)
+    ordered = []
+    while len(ordered) < len(names):
+        ready = [name for name in names if name not in ordered and earlier[name] <= set(ordered)]
+        if not ready:
+            cycle = ", ".join(name for name in names if name not in ordered)
+            raise SnapError(f'cannot validate snap "{snap_info.get("name")}": '
+                            f"applications are part of a before/after cycle: {cycle}")
+        ordered.append(ready[0])
+    return ordered
+
+
+def in_start_order(layout, targets):
+    """[(snap, app)] sorted as systemd orders one transaction's start jobs (stop jobs: reversed)."""
+    order = {}
+    for snap in dict.fromkeys(snap for snap, _ in targets):
+        order.update(((snap, app), index) for index, app in enumerate(daemons(snap_info(layout, snap))))
+    return sorted(dict.fromkeys(targets), key=lambda target: (target[0], order[target]))
 
 
 def resolve(layout, names, own_snap=None):
@@ -126,25 +159,26 @@ def is_enabled(layout, snap, app):
 
 
 def perform(layout, action, targets, enable=False, disable=False):
-    """snap start/stop/restart on [(snap, app)]."""
-    for snap, app in targets:
-        if action == "start":
-            if enable:
-                set_enabled(layout, snap, app, True)
-            start(layout, snap, app)
-        elif action == "stop":
+    """snap start/stop/restart on [(snap, app)], in the services' order (`after`/`before`):
+    starts in it, stops in reverse; a restart stops all in reverse, then starts all in order."""
+    if action not in ("start", "stop", "restart"):
+        raise SnapError(f"unknown service action {action}")
+    ordered = in_start_order(layout, targets)
+    if action in ("stop", "restart"):
+        for snap, app in reversed(ordered):
             if disable:
                 set_enabled(layout, snap, app, False)
             stop(layout, snap, app)
-        elif action == "restart":
-            restart(layout, snap, app)
-        else:
-            raise SnapError(f"unknown service action {action}")
+    if action in ("start", "restart"):
+        for snap, app in ordered:
+            if enable:
+                set_enabled(layout, snap, app, True)
+            start(layout, snap, app)
 
 
 def table(layout, targets):
     rows = [("Service", "Startup", "Current", "Notes")]
-    for snap, app in targets:
+    for snap, app in sorted(targets):  # by name, as snapd lists them
         rows.append((f"{snap}.{app}", "enabled" if is_enabled(layout, snap, app) else "disabled",
                      "active" if is_active(layout, snap, app) else "inactive", "-"))
     widths = [max(len(row[column]) for row in rows) for column in range(4)]

@@ -167,7 +167,7 @@ def remove(layout, name, purge=False):
 
 
 def _stop_all(layout, name, info):
-    for app in services.daemons(info):
+    for app in reversed(services.daemons(info)):  # the reverse of the start order
         services.stop(layout, name, app)
 
 
