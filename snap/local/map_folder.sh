@@ -50,3 +50,14 @@ make_current() {
   mv -fT -- "$maps_dir/.current_map.yaml.tmp" "$maps_dir/current_map.yaml"
   sync -- "$maps_dir"
 }
+
+# The guide's map folder, root's $SNAP_USER_COMMON/map (the upstream snap's, which
+# scripts rely on: .../common/map/current_map.yaml), as a link to the maps folder.
+# Made when nothing is there; an old folder of maps is left to migrate_maps.sh.
+link_user_map_folder() {
+  mkdir -p "$maps_dir"
+  if [ ! -e "$SNAP_USER_COMMON/map" ] && [ ! -L "$SNAP_USER_COMMON/map" ]; then
+    mkdir -p "$SNAP_USER_COMMON"
+    ln -s "$maps_dir" "$SNAP_USER_COMMON/map"
+  fi
+}

@@ -10,4 +10,4 @@ map_dir="$SNAP_COMMON/maps"
 mkdir -p "$map_dir"
 
 export MUX_INPUT=key_vel
-exec mux_select.sh model_launcher.sh turtlebot3c_slam turtlebot3c_mapping.launch "bag:=$map_dir/new_map.bag"
+exec wait_for_master.sh mux_select.sh model_launcher.sh turtlebot3c_slam turtlebot3c_mapping.launch "bag:=$map_dir/new_map.bag"

@@ -13,6 +13,7 @@ this_host="$(uname -n)"
 if [ -n "$master_host" ]; then
   if [ -z "${ROS_MASTER_URI:-}" ] || [ "$ROS_MASTER_URI" = "http://localhost:11311" ]; then
     export ROS_MASTER_URI="http://${master_host}:11311"
+    export TURTLEBOT3C_URI_FROM_OPTION=1 # the roscore app follows the option when it changes
   fi
   # Other machines reach our nodes by this name. When the master runs here,
   # the master's name is ours; otherwise use our own mDNS name, not the

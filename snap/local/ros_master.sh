@@ -1,0 +1,50 @@
+#!/bin/bash
+# Sourced by roscore_daemon.sh and wait_for_master.sh: questions about the ROS master.
+# shellcheck shell=bash
+
+# The master at URI $1 answers (its XML-RPC getPid, within 3 s).
+master_answers() {
+  timeout 5 python3 -c '
+import sys, xmlrpc.client, socket
+socket.setdefaulttimeout(3)
+try:
+    code, _, _ = xmlrpc.client.ServerProxy(sys.argv[1]).getPid("/turtlebot3c_master_check")
+except Exception:
+    sys.exit(1)
+sys.exit(0 if code == 1 else 1)
+' "$1" >/dev/null 2>&1
+}
+
+# The host of URI $1 (http://HOST:PORT/ -> HOST).
+uri_host() {
+  local rest="${1#*://}"
+  rest="${rest%%/*}"
+  printf '%s' "${rest%:*}"
+}
+
+# The port of URI $1 (11311 when it names none).
+uri_port() {
+  local rest="${1#*://}"
+  rest="${rest%%/*}"
+  case "$rest" in
+    *:*) printf '%s' "${rest##*:}" ;;
+    *) printf '11311' ;;
+  esac
+}
+
+# Host $1 is this machine: localhost, our own name (with .local), or an address of ours
+# (one a socket can be bound to).
+host_is_here() {
+  local this_host
+  this_host="$(uname -n)"
+  case "$1" in
+    localhost | localhost.localdomain | 127.* | "$this_host" | "$this_host.local") return 0 ;;
+  esac
+  timeout 5 python3 -c '
+import socket, sys
+try:
+    socket.socket().bind((socket.gethostbyname(sys.argv[1]), 0))
+except OSError:
+    sys.exit(1)
+' "$1" >/dev/null 2>&1
+}
