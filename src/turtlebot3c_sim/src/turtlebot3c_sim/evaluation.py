@@ -15,7 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from turtlebot3c_common.se2 import compose, inverse, transform_points, wrap_angle
+from turtlebot3c_common.se2 import compose, inverse, relative, transform_points, wrap_angle
 
 UNKNOWN, FREE_MAX, OCCUPIED_MIN = -1, 25, 65
 
@@ -183,3 +183,65 @@ ROUTES = {
               (1.2, 2.0), (0.0, 2.0), (-1.2, 1.8), (-2.4, 1.5), (-3.0, 0.9), (-3.0, 0.0), (-3.0, -0.9),
               (-2.5, -2.0), (-1.0, -2.2), (0.0, -2.0), (1.0, -1.8), (2.0, -1.0)],
 }
+
+
+class RelativeError(NamedTuple):
+    translation: float   # m, mean over the pairs
+    rotation: float      # rad, mean over the pairs
+    pairs: int
+
+
+def relative_pose_errors(estimated, reference, travel, min_travel=1.0, max_travel=10.0):
+    """Mean error of the motion between every pair of poses `min_travel`..`max_travel` m of path apart.
+
+    The relations metric of Kümmerle et al. (2009): for each pair, how far the estimated pose
+    of the later one, seen from the earlier one, lies from the reference's; a trajectory that
+    is right locally scores well wherever its map frame lies. `travel` (N,) is the reference
+    path length to each pose.
+    """
+    estimated = np.asarray(estimated, dtype=np.float64)[:, :3]
+    reference = np.asarray(reference, dtype=np.float64)[:, :3]
+    travel = np.asarray(travel, dtype=np.float64)
+    first, last = [], []
+    for index in range(len(travel)):
+        start = np.searchsorted(travel, travel[index] + min_travel, side="left")
+        stop = np.searchsorted(travel, travel[index] + max_travel, side="right")
+        first.append(np.full(max(stop - start, 0), index))
+        last.append(np.arange(start, stop))
+    first, last = np.concatenate(first).astype(int), np.concatenate(last).astype(int)
+    if len(first) == 0:
+        return RelativeError(math.nan, math.nan, 0)
+    error_xy, error_theta = _relation_errors(estimated, reference, first, last)
+    return RelativeError(float(error_xy.mean()), float(error_theta.mean()), len(first))
+
+
+def _relation_errors(estimated, reference, first, last):
+    def motion(poses):
+        dx, dy = poses[last, 0] - poses[first, 0], poses[last, 1] - poses[first, 1]
+        cos, sin = np.cos(poses[first, 2]), np.sin(poses[first, 2])
+        return cos * dx + sin * dy, -sin * dx + cos * dy, poses[last, 2] - poses[first, 2]
+    ex, ey, et = motion(estimated)
+    rx, ry, rt = motion(reference)
+    return np.hypot(ex - rx, ey - ry), np.abs(wrap_angle(et - rt))
+
+
+def aligned_trajectory_error(estimated, reference):
+    """RMS position error (m) after the rigid motion that best lays `estimated` on `reference` (Horn)."""
+    estimated = np.asarray(estimated, dtype=np.float64)[:, :2]
+    reference = np.asarray(reference, dtype=np.float64)[:, :2]
+    mean_estimated, mean_reference = estimated.mean(axis=0), reference.mean(axis=0)
+    a, b = estimated - mean_estimated, reference - mean_reference
+    angle = math.atan2(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]), np.sum(a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]))
+    cos, sin = math.cos(angle), math.sin(angle)
+    turned = np.column_stack((cos * a[:, 0] - sin * a[:, 1], sin * a[:, 0] + cos * a[:, 1]))
+    return float(np.sqrt(np.mean(np.sum((turned - b) ** 2, axis=1))))
+
+
+def false_relations(pairs, reference, tolerance_xy=0.2, tolerance_theta=math.radians(2.0)):
+    """How many of `pairs` [(i, j, (x, y, yaw))] -- a claimed pose of scan j seen from scan i, such
+    as a loop closure -- contradict the reference by more than the tolerances."""
+    false = 0
+    for i, j, claimed in pairs:
+        error = relative(relative(tuple(reference[i]), tuple(reference[j])), tuple(claimed))
+        false += math.hypot(error[0], error[1]) > tolerance_xy or abs(error[2]) > tolerance_theta
+    return false

@@ -60,11 +60,18 @@ class SlamConfig:
         ("keyframe_distance", 0.2),       # m of motion between keyframes
         ("keyframe_angle", 0.2),          # rad of rotation between keyframes
         ("local_map_keyframes", 30),      # keyframes in the tracking map
-        ("match_window_xy", 0.1),         # m, tracking search half-width around odometry's prediction
-        ("match_window_theta", 0.08),     # rad
-        ("match_prior_sigma_xy", 0.05),   # m; how far a better score may pull from the prediction
-        ("match_prior_sigma_theta", 0.05),  # rad
-        ("match_min_score", 0.2),         # below: keep odometry
+        # How far odometry's prediction may be off (1 sigma): after a good match, and growing
+        # with the distance, turn and time since the last good match. Tracking searches
+        # 3 sigma around the prediction, up to the max windows.
+        ("match_sigma_xy", 0.03),         # m
+        ("match_sigma_theta", 0.03),      # rad
+        ("odometry_error_distance", 0.05),  # m per m travelled
+        ("odometry_error_turn", 0.12),    # rad per rad turned
+        ("odometry_error_heading", 0.03),  # rad per m travelled
+        ("odometry_error_time", 0.01),    # m and rad per s (a slipping wheel)
+        ("match_window_max_xy", 1.0),     # m
+        ("match_window_max_theta", 0.7),  # rad
+        ("match_min_score", 0.2),         # below: keep odometry, and search wider next scan
         ("match_points", 300),            # at most this many scan points are matched
         ("loop_search_radius", 3.0),      # m between a new keyframe and an old one to try closing
         ("loop_min_travel", 6.0),         # m of path between them
@@ -123,6 +130,23 @@ class MapRebuild:
         return self.grid
 
 
+class UnmatchedMotion:
+    """Odometry's motion since the last scan that matched well: what its error grows with."""
+
+    def __init__(self, stamp=None):
+        self.distance = 0.0  # m
+        self.turn = 0.0      # rad
+        self.seconds = 0.0
+        self.stamp = stamp
+
+    def add(self, delta, stamp):
+        self.distance += math.hypot(delta[0], delta[1])
+        self.turn += abs(delta[2])
+        if self.stamp is not None:
+            self.seconds += max(0.0, stamp - self.stamp)
+        self.stamp = stamp
+
+
 class Keyframe:
     def __init__(self, stamp, rays, points, travel):
         self.stamp = stamp
@@ -149,8 +173,9 @@ class Slam:
         self.travel = 0.0
         self.map_version = 0       # changes whenever the map may have changed
         self._last_loop_attempt = -(10 ** 9)
-        self.loop_closures = []    # (old keyframe, new keyframe, score)
+        self.loop_closures = []    # (old keyframe, new keyframe, new seen from old, score)
         self.poor_matches = 0
+        self._unmatched = UnmatchedMotion()
 
     def _new_grid(self, resolution, cell_shift=0.0):
         return LogOddsGrid(resolution, self.config.hit_log_odds, self.config.free_log_odds, cell_shift)
@@ -181,6 +206,7 @@ class Slam:
             return self.pose
         delta = relative(self.odom, odom_pose)
         self.travel += math.hypot(delta[0], delta[1])
+        self._unmatched.add(delta, stamp)
         predicted = compose(self.pose, delta)
         self.pose = self._track(points, predicted)
         self.odom = odom_pose
@@ -208,16 +234,27 @@ class Slam:
     def _track(self, points, predicted):
         if len(points) < 10 or not self.local_updates:
             return predicted
-        matcher = self._tracking_matcher(points, predicted)
-        result = matcher.match(points, predicted, self.config.match_window_xy, self.config.match_window_theta,
-                               prior_sigmas=(self.config.match_prior_sigma_xy, self.config.match_prior_sigma_theta))
+        window_xy, window_theta = self._tracking_window()
+        matcher = self._tracking_matcher(points, predicted, window_xy)
+        # A weak prior: it settles ties (a corridor's length) without outvoting the scan.
+        result = matcher.match(points, predicted, window_xy, window_theta, prior_sigmas=(window_xy, window_theta))
         if result.score < self.config.match_min_score:
             self.poor_matches += 1
             return predicted
+        self._unmatched = UnmatchedMotion(self._unmatched.stamp)
         return result.pose
 
-    def _tracking_matcher(self, points, predicted):
-        reach = float(np.max(np.hypot(points[:, 0], points[:, 1]))) + self.config.match_window_xy
+    def _tracking_window(self):
+        """Search half-widths (m, rad): 3 sigma of how far odometry may have drifted since the last good match."""
+        config, motion = self.config, self._unmatched
+        sigma_xy = config.match_sigma_xy + config.odometry_error_distance * motion.distance + \
+            config.odometry_error_time * motion.seconds
+        sigma_theta = config.match_sigma_theta + config.odometry_error_turn * motion.turn + \
+            config.odometry_error_heading * motion.distance + config.odometry_error_time * motion.seconds
+        return min(3 * sigma_xy, config.match_window_max_xy), min(3 * sigma_theta, config.match_window_max_theta)
+
+    def _tracking_matcher(self, points, predicted, window_xy):
+        reach = float(np.max(np.hypot(points[:, 0], points[:, 1]))) + window_xy
         resolution = self.config.match_resolution
         need_low = np.floor((np.array(predicted[:2]) - reach) / resolution).astype(np.int64)
         need_high = np.floor((np.array(predicted[:2]) + reach) / resolution).astype(np.int64)
@@ -335,9 +372,10 @@ class Slam:
         result = matcher.match(cloud, current, config.loop_window_xy, config.loop_window_theta)
         if result.score < config.loop_min_score:
             return
-        self.graph.add_edge(candidate, newest, relative(tuple(self.graph.poses[candidate]), result.pose),
+        measured = relative(tuple(self.graph.poses[candidate]), result.pose)
+        self.graph.add_edge(candidate, newest, measured,
                             self._information(config.loop_sigma_xy, config.loop_sigma_theta), robust=True)
-        self.loop_closures.append((candidate, newest, result.score))
+        self.loop_closures.append((candidate, newest, measured, result.score))
         if distance(result.pose, current) > config.resolution * 0.5 or \
                 abs(wrap_angle(result.pose[2] - current[2])) > 0.005:
             self._optimize()
