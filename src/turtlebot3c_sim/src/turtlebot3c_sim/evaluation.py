@@ -237,9 +237,9 @@ def aligned_trajectory_error(estimated, reference):
     return float(np.sqrt(np.mean(np.sum((turned - b) ** 2, axis=1))))
 
 
-def false_relations(pairs, reference, tolerance_xy=0.2, tolerance_theta=math.radians(2.0)):
+def false_relations(pairs, reference, tolerance_xy=0.2, tolerance_theta=0.035):
     """How many of `pairs` [(i, j, (x, y, yaw))] -- a claimed pose of scan j seen from scan i, such
-    as a loop closure -- contradict the reference by more than the tolerances."""
+    as a loop closure -- contradict the reference by more than the tolerances (m, rad: 2 degrees)."""
     false = 0
     for i, j, claimed in pairs:
         error = relative(relative(tuple(reference[i]), tuple(reference[j])), tuple(claimed))
