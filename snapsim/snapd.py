@@ -52,6 +52,7 @@ def install(layout, project_dir, dangerous=False):
     mount = layout.snap_mount(name, revision)
     try:
         info = prime.build_prime(project_dir, mount, host_python())
+        services.daemons(info)  # snapd refuses a snap whose after/before name no service or make a cycle
     except BaseException:
         shutil.rmtree(mount, ignore_errors=True)
         raise

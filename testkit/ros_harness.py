@@ -182,9 +182,11 @@ def master_answers(uri):
 
 
 class RosMaster:
-    """A roscore on a free port, with helpers to start nodes and launch files against it."""
+    """A roscore on a free port, with helpers to start nodes and launch files against it.
 
-    def __init__(self, base_env, workdir):
+    `start_core=False`: the port only, for a master someone else runs there (the snap's roscore app)."""
+
+    def __init__(self, base_env, workdir, start_core=True):
         self.port = free_port()
         self.uri = f"http://127.0.0.1:{self.port}"
         self.workdir = Path(workdir)
@@ -199,6 +201,9 @@ class RosMaster:
         self.env.pop("ROS_IP", None)
         self.processes = []
         self._probe = None
+        self.core = None
+        if not start_core:
+            return
         self.core = self.start(["roscore", "-p", str(self.port)], name="roscore")
         wait_until(self.is_up, 30,
                    lambda: f"roscore on port {self.port} did not come up:\n{self.core.log_text()[-2000:]}")

@@ -5,6 +5,7 @@ import shutil
 import signal
 import subprocess
 import time
+import xmlrpc.client
 from pathlib import Path
 
 from snapsim.supervisor import root_processes
@@ -290,3 +291,131 @@ def selected_mux_input(master, expected, since, timeout=30):
     message = master.probe.wait_for_message("/mux/selected", "std_msgs/String", timeout=timeout,
                                             where=lambda message: message["data"] == expected, start=since)
     return message["data"]
+
+
+# --- the snap serving its own master (the roscore app) --------------------------------
+
+# What each daemon runs while it works (core's drivers only with simulation=false).
+DAEMON_NODES = {
+    "core": ["/robot_state_publisher"],
+    "teleop": ["/mux", "/velocity_watchdog"],
+    "mapping": ["/turtlebot3_slam_gmapping", "/mapping_recorder"],
+    "navigation": ["/map_server", "/amcl", "/move_base"],
+}
+DRIVER_NODES = ["/turtlebot3_core", "/turtlebot3_lds"]
+
+
+def install_with_own_master(folder):
+    """This repository's snap installed in a snapsim root whose roscore app runs the master.
+
+    /etc/environment names a free port (never 11311, so a developer's roscore and parallel
+    tests are never met); returns (system, master): `master` starts nothing, it is the
+    test's handle on that port (launch, probe, graph queries).
+    """
+    folder = Path(folder)
+    master = ros_harness.RosMaster(ros_harness.install_space_environment(), folder / "ros", start_core=False)
+    system = SnapSystem(folder / "root", build_dir=ros_harness.BUILD, etc_environment={
+        "ROS_MASTER_URI": master.uri, "ROS_HOSTNAME": "127.0.0.1"})
+    system.snapsim("install", REPO, "--dangerous")
+    return system, master
+
+
+def command_words(pid):
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().decode(errors="replace").rstrip("\0").split("\0")
+    except OSError:
+        return []
+
+
+def rosmaster_pids(system):
+    """The rosmaster processes running in `system`'s root."""
+    return [pid for pid in root_processes(system.root)
+            if any(Path(word).name == "rosmaster" for word in command_words(pid)) and pid_alive(pid)]
+
+
+def kill_master(system, master):
+    """SIGKILL the master the roscore app runs (a crash); the probe goes with it."""
+    close_probe(master)
+    pids = rosmaster_pids(system)
+    for pid in pids:
+        ros_harness.kill_quietly(pid, signal.SIGKILL)
+    return pids
+
+
+def close_probe(master):
+    """Drop the test's probe node: one registered with a master that has died is seen by nobody."""
+    if master._probe is not None:
+        master._probe.close()
+        master._probe = None
+
+
+class _Timeout(xmlrpc.client.Transport):
+    def make_connection(self, host):
+        connection = super().make_connection(host)
+        connection.timeout = 3.0
+        return connection
+
+
+def node_uri(master, name):
+    """The XML-RPC URI `name` is registered under, if its process answers there (else None)."""
+    try:
+        code, _, uri = xmlrpc.client.ServerProxy(master.uri, transport=_Timeout()).lookupNode("/test", name)
+        if code != 1:
+            return None
+        code, _, pid = xmlrpc.client.ServerProxy(uri, transport=_Timeout()).getPid("/test")
+    except (OSError, xmlrpc.client.Error):
+        return None
+    return (uri, pid) if code == 1 else None
+
+
+def active_apps(system):
+    return [app for app in DAEMON_NODES if system.status("turtlebot3c", app)["state"] == "active"]
+
+
+def robot_problems(system, master, apps=None, simulation=None):
+    """What keeps the robot from working now (empty: it works): the master answers; every node
+    of each active daemon (or of `apps`) is registered and answers; robot_state_publisher
+    publishes the model's /tf_static; the watchdog carries the mux's output to /cmd_vel; and
+    /mux/select answers (asked for the input already selected, so nothing changes)."""
+    if not ros_harness.master_answers(master.uri):
+        return ["no master answers"]
+    apps = active_apps(system) if apps is None else apps
+    names = [name for app in apps for name in DAEMON_NODES[app]]
+    if "core" in apps and simulation is False:
+        names += DRIVER_NODES
+    problems = [f"{name} is not registered or does not answer" for name in names if node_uri(master, name) is None]
+    try:
+        publishers, subscribers, _ = master.system_state()
+    except (OSError, AssertionError) as error:
+        return problems + [f"getSystemState: {error}"]
+    publishers, subscribers = dict(publishers), dict(subscribers)
+    wanted = []
+    if "core" in apps:
+        wanted += [("/tf_static", publishers, "/robot_state_publisher")]
+    if "teleop" in apps:
+        # (the mux advertises its output only once an input has spoken: not asked here)
+        wanted += [("/cmd_vel_mux", subscribers, "/velocity_watchdog"), ("/cmd_vel", publishers, "/velocity_watchdog")]
+    problems += [f"{node} is not on {topic}" for topic, table, node in wanted if node not in table.get(topic, [])]
+    if "teleop" in apps and not problems:
+        problems += mux_select_problems(master)
+    return problems
+
+
+def mux_select_problems(master):
+    try:
+        selected = master.probe.wait_for_message("/mux/selected", "std_msgs/String", timeout=5, start=0)["data"]
+        master.probe.call("/mux/select", {"topic": selected}, timeout=5.0)
+    except (ros_harness.ProbeError, TimeoutError, OSError) as error:
+        close_probe(master)  # a probe of a master that died: the next look makes a new one
+        return [f"/mux/select does not answer: {error}"]
+    return []
+
+
+def wait_for_working_robot(system, master, timeout, **kwargs):
+    """Wait until `robot_problems` finds nothing; returns the seconds it took."""
+    started = time.monotonic()
+    wait_until(lambda: not robot_problems(system, master, **kwargs), timeout,
+               lambda: f"the robot did not work within {timeout} s: {robot_problems(system, master, **kwargs)}\n"
+                       f"{system.snapsim('services', check=False).stdout}\n{system.logs('turtlebot3c', '150')}",
+               interval=0.25)
+    return time.monotonic() - started

@@ -13,6 +13,12 @@ rm -rf -- "$map_dir"/.saving.*
 work="$(mktemp -d "$map_dir/.saving.XXXXXX")"
 trap 'rm -rf -- "$work"' EXIT
 
+# A master that crashed is back within seconds (the roscore app): wait for it rather than lose
+# the map, but not for ever (SLAM's map cannot be had without a master).
+if ! ROS_MASTER_WAIT="${SAVE_MASTER_WAIT:-30}" wait_for_master.sh; then
+  echo "save_map: the map could not be saved: no ROS master to get it from" >&2
+  exit 1
+fi
 if ! rosrun turtlebot3c_maps map_saver -f "$work/map"; then
   echo "save_map: the map could not be saved (see the map_saver message above)" >&2
   exit 1

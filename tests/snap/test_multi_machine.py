@@ -7,8 +7,9 @@ and `tb3c-remote` (their own UTS namespaces, `.local` names in
 /etc/netns/<namespace>/hosts, which `ip netns exec` puts in place of /etc/hosts).
 Each host has its own snapsim root with the snap installed, as two machines
 would. The robot runs the snap's daemons with `ros-master-host=tb3c-robot.local`
-and the simulator; the remote runs `turtlebot3c.key` in a pseudo-terminal and
-receives /scan and /map as RViz would.
+(its roscore app runs the master) and the simulator; the remote's roscore app runs
+none; the remote runs `turtlebot3c.key` in a pseudo-terminal and receives /scan and
+/map as RViz would.
 """
 import os
 import shutil
@@ -199,6 +200,7 @@ def robot_master_pid(robot_host):
 
 
 def test_a_killed_master_on_the_robot_comes_back_with_every_daemon_node(machines, ros_env, tmp_path):
+    """The roscore app starts it again at once: the daemons' nodes register with it, none restarts."""
     robot, _, _, _ = machines
     master = robot_master_pid(robot.host)
     assert master, "no rosmaster runs on the robot"
@@ -216,4 +218,16 @@ def test_a_killed_master_on_the_robot_comes_back_with_every_daemon_node(machines
         probe.close()
     statuses = {app: robot.status("turtlebot3c", app) for app in restarts}
     assert all(status["state"] == "active" for status in statuses.values()), statuses
-    print(f"master killed on the robot: daemons {restarts} -> {[s['main_pid'] for s in statuses.values()]}")
+    # The roscore app started the master again; core and teleop were not restarted.
+    assert {app: status["main_pid"] for app, status in statuses.items()} == restarts
+    assert "roscore: the ROS master at http://tb3c-robot.local:11311 ended" in robot.logs("turtlebot3c.roscore")
+
+
+def test_the_remote_runs_no_master_and_says_so(machines):
+    robot, remote, _, _ = machines
+    wait_until(lambda: "no master runs here" in remote.logs("turtlebot3c.roscore"), 30,
+               lambda: remote.logs("turtlebot3c.roscore"))
+    assert "roscore: ros-master-host now names another machine (http://tb3c-robot.local:11311)" in \
+        remote.logs("turtlebot3c.roscore")
+    assert robot_master_pid(remote.host) is None
+    assert robot_master_pid(robot.host) is not None

@@ -107,3 +107,76 @@ def test_restart_gives_a_new_main_process(system):
     system.snapsim("restart", "demo.svc")
     wait_until(lambda: system.status("demo", "svc")["main_pid"] not in (None, first), 30, "svc did not restart")
     assert not pid_alive(first)
+
+
+ORDERED_SNAPCRAFT_YAML = """\
+name: ordered
+base: core20
+version: '1.0'
+summary: services with after and before
+description: Three services whose start and stop the trace records.
+grade: devel
+confinement: strict
+parts:
+  files:
+    plugin: dump
+    source: local/
+    organize:
+      '*.sh': usr/bin/
+apps:
+  alpha:
+    command: usr/bin/run.sh alpha
+    daemon: simple
+    after: [zulu]
+  middle:
+    command: usr/bin/run.sh middle
+    daemon: simple
+    after: [alpha]
+  zulu:
+    command: usr/bin/run.sh zulu
+    daemon: simple
+    before: [alpha]
+"""
+ORDERED_RUN = """#!/bin/sh
+echo "start $1" >>"$SNAP_COMMON/trace"
+trap 'echo "stop $1" >>"$SNAP_COMMON/trace"; exit 0' TERM
+sleep 1000 &
+wait "$!"
+"""
+
+
+def ordered_project(folder, snapcraft_yaml=ORDERED_SNAPCRAFT_YAML):
+    (folder / "snap").mkdir(parents=True)
+    (folder / "snap" / "snapcraft.yaml").write_text(snapcraft_yaml)
+    (folder / "local").mkdir()
+    (folder / "local" / "run.sh").write_text(ORDERED_RUN)
+    (folder / "local" / "run.sh").chmod(0o755)
+    return folder
+
+
+def test_services_start_in_their_after_before_order_and_stop_in_reverse(tmp_path):
+    system = SnapSystem(tmp_path / "root")
+    try:
+        system.snapsim("install", ordered_project(tmp_path / "ordered"), "--dangerous")
+        assert trace(system, "ordered") == ["start zulu", "start alpha", "start middle"]
+        system.snapsim("stop", "ordered")
+        assert trace(system, "ordered")[3:] == ["stop middle", "stop alpha", "stop zulu"]
+        system.snapsim("restart", "ordered.middle", "ordered.zulu", "ordered.alpha")
+        assert trace(system, "ordered")[6:] == ["start zulu", "start alpha", "start middle"]
+        system.snapsim("restart", "ordered.zulu")  # ordering only: the others are not restarted
+        assert trace(system, "ordered")[9:] == ["stop zulu", "start zulu"]
+        listed = [line.split()[0] for line in system.snapsim("services", "ordered").stdout.splitlines()[1:]]
+        assert listed == ["ordered.alpha", "ordered.middle", "ordered.zulu"]  # listed by name, as snapd
+    finally:
+        system.shutdown()
+
+
+def test_an_after_before_cycle_is_refused_with_a_message(tmp_path):
+    cyclic = ORDERED_SNAPCRAFT_YAML.replace("after: [alpha]", "after: [alpha]\n    before: [zulu]")
+    system = SnapSystem(tmp_path / "root")
+    try:
+        done = system.snapsim("install", ordered_project(tmp_path / "ordered", cyclic), "--dangerous", check=False)
+        assert done.returncode != 0
+        assert "before/after cycle" in done.stderr and "Traceback" not in done.stderr, done.stderr
+    finally:
+        system.shutdown()
