@@ -1,0 +1,295 @@
+"""MRPT's rbpf-slam and icp-slam (Debian's mrpt-apps) on the same real scans and odometry as ours.
+
+For benchmarks/bench_slam_real: the peers get a log's scans with the odometry our SLAM gets,
+and give back one pose per scan, their CPU time and peak memory, so every mapper is scored the
+same way in the same run (testkit.real_data.score).
+
+How:
+- Debian's carmen2rawlog (2.5.8) is not used: it writes wrong timestamps and a rawlog of bare
+  observations that rbpf-slam cannot read. Our own converter (mrpt/scans_to_rawlog.cpp, compiled
+  on first use into build/mrpt-converter/ against libmrpt-obs-dev) writes the "actions and
+  observations" rawlog: per scan a CActionRobotMovement2D with the odometry increment and a
+  CSensoryFrame with the CObservation2DRangeScan.
+- The motion model of each increment is Thrun's with GMapping's odometry noise (srr 0.1,
+  srt 0.2, str 0.1, stt 0.2); with MRPT's default noise rbpf-slam diverges on real data.
+- No-return readings (+inf) are stored as invalid beams; the fan of beams is centred with the
+  sensor's yaw, as MRPT spreads the beams evenly over the aperture (180 beams 1 degree apart from
+  -90 degrees are a 179 degree aperture turned by -0.5 degree).
+- The settings are in mrpt/rbpf-slam.ini and mrpt/icp-slam.ini, one comment per choice; a run
+  only sets its output folder and (rbpf-slam) the random seed, RANDOM_SEED, which rbpf-slam
+  2.5.8 reads and gives to MRPT's random generator.
+- Trajectories: icp-slam writes its pose after every scan (log_estimated_path.txt), which is
+  final (no loop closure). rbpf-slam's answer is the path of the most likely particle at the end
+  (most_likely_path.txt, one pose per filter step after the starting pose); a scan at which the
+  filter did not run (no motion since the last) gets that path's last pose moved by odometry,
+  as rbpf-slam itself predicts it.
+
+Runnable alone for a quick check: .venv/bin/python3 benchmarks/mrpt_peers.py [log ...]
+"""
+import math
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import NamedTuple, Optional
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parent.parent
+HERE = Path(__file__).resolve().parent / "mrpt"
+CONVERTER_SOURCE = HERE / "scans_to_rawlog.cpp"
+CONVERTER = REPO / "build" / "mrpt-converter" / "scans_to_rawlog"
+RBPF_CONFIG = HERE / "rbpf-slam.ini"
+ICP_CONFIG = HERE / "icp-slam.ini"
+MRPT_INCLUDE = Path("/usr/include/mrpt")
+MRPT_LIBRARIES = ("mrpt-obs", "mrpt-poses", "mrpt-serialization", "mrpt-io", "mrpt-core",
+                  "mrpt-system", "mrpt-math")
+
+# Thrun's motion model alphas (MRPT's names) with GMapping's odometry noise: srr 0.1 (m per m),
+# srt 0.2 (m per rad), str 0.1 (rad per m), stt 0.2 (rad per rad), as ROS gmapping documents them.
+ALFA1_ROT_ROT = 0.2      # stt
+ALFA2_ROT_TRANS = 0.1    # str
+ALFA3_TRANS_TRANS = 0.1  # srr
+ALFA4_TRANS_ROT = 0.2    # srt
+RANGE_STD = 0.01         # m, a SICK LMS's range noise
+MAX_RANGE = 30.0         # m: farther readings are dropped as no-return (aces, icp-slam: 30 m beat 80, 15, 8 m)
+PEER_TIMEOUT = 3600.0    # s of wall time for one peer run
+
+
+class PeerRun(NamedTuple):
+    name: str                 # "rbpf-slam" or "icp-slam"
+    trajectory: np.ndarray    # (N, 3) x, y, theta per scan of the log, in the peer's map frame
+    seconds: float            # CPU seconds (user + sys) of the peer's process
+    peak_rss_mb: float        # the peer process's peak resident memory
+    wall_seconds: float
+
+
+def available() -> Optional[str]:
+    """None when both peers can run here, else why not (one line, for the benchmark to print)."""
+    for program in ("rbpf-slam", "icp-slam"):
+        if shutil.which(program) is None:
+            return f"{program} not found (apt-get install mrpt-apps)"
+    try:
+        converter()
+    except RuntimeError as error:
+        return str(error)
+    return None
+
+
+def converter() -> Path:
+    """The rawlog converter, compiled on first use (and again when its source changes)."""
+    if CONVERTER.exists() and CONVERTER.stat().st_mtime >= CONVERTER_SOURCE.stat().st_mtime:
+        return CONVERTER
+    compiler = shutil.which("g++")
+    if compiler is None:
+        raise RuntimeError("g++ not found: cannot build the MRPT rawlog converter")
+    if not (MRPT_INCLUDE / "obs" / "include" / "mrpt" / "obs" / "CObservation2DRangeScan.h").exists():
+        raise RuntimeError("MRPT headers not found (apt-get install libmrpt-obs-dev)")
+    CONVERTER.parent.mkdir(parents=True, exist_ok=True)
+    includes = [f"-I{folder}" for folder in sorted(MRPT_INCLUDE.glob("*/include"))]
+    includes += ["-I/usr/include/eigen3", "-I/usr/include/suitesparse"]
+    partial = CONVERTER.with_suffix(".partial")
+    command = [compiler, "-std=c++17", "-O2", *includes, str(CONVERTER_SOURCE), "-o", str(partial),
+               *(f"-l{library}" for library in MRPT_LIBRARIES)]
+    built = subprocess.run(command, capture_output=True, text=True)
+    if built.returncode != 0:
+        tail = (built.stderr.strip().splitlines() or ["(no message)"])[-1]
+        raise RuntimeError(f"cannot build the MRPT rawlog converter: {tail}")
+    partial.replace(CONVERTER)
+    return CONVERTER
+
+
+def write_rawlog(log, odometry, path):
+    """Convert `log`'s scans with `odometry` (N, 3) into an MRPT rawlog at `path`."""
+    odometry = np.asarray(odometry, dtype=np.float64)
+    beams = log.beams
+    aperture = log.angle_increment * (beams - 1)
+    sensor_yaw = log.angle_min + aperture / 2.0
+    text = Path(str(path) + ".txt")
+    with open(text, "w") as stream:
+        stream.write(f"{beams} {aperture!r} {sensor_yaw!r} {MAX_RANGE} {RANGE_STD} "
+                     f"{ALFA1_ROT_ROT} {ALFA2_ROT_TRANS} {ALFA3_TRANS_TRANS} {ALFA4_TRANS_ROT}\n")
+        for index, (stamp, ranges) in enumerate(zip(log.stamps, log.ranges)):
+            step = _relative(odometry[index - 1], odometry[index]) if index else (0.0, 0.0, 0.0)
+            readings = np.where(np.isfinite(ranges), ranges, -1.0)
+            stream.write(f"{1e9 + float(stamp):.6f} {step[0]!r} {step[1]!r} {step[2]!r} ")
+            stream.write(" ".join(f"{value:.4f}" for value in readings))
+            stream.write("\n")
+    done = subprocess.run([str(converter()), str(text), str(path)], capture_output=True, text=True)
+    if done.returncode != 0 or done.stdout.strip() != str(len(log.stamps)):
+        raise RuntimeError(f"rawlog conversion failed: {done.stderr.strip() or done.stdout.strip()}")
+    text.unlink()
+
+
+def run_rbpf_slam(log, odometry, seed, workdir) -> PeerRun:
+    """rbpf-slam over every scan of `log` with `odometry` (N, 3), seeded with `seed`."""
+    workdir = Path(workdir)
+    workdir.mkdir(parents=True, exist_ok=True)
+    rawlog = workdir / "scans.rawlog"
+    write_rawlog(log, odometry, rawlog)
+    out = workdir / "rbpf-out"
+    config = _config(RBPF_CONFIG, workdir / "rbpf-slam.ini",
+                     {"logOutput_dir": str(out), "RANDOM_SEED": str(int(seed))})
+    seconds, peak, wall = _run(["rbpf-slam", str(config), str(rawlog)], workdir / "rbpf-slam.out")
+    path = np.loadtxt(out / "most_likely_path.txt", ndmin=2)
+    steps = _filter_steps(odometry, _settings(config))
+    if len(path) != int(steps.sum()) + 1:
+        raise RuntimeError(f"rbpf-slam: {len(path)} poses in its path for {int(steps.sum())} filter steps")
+    trajectory = _fill_between_steps(path[1:], steps, odometry)
+    return PeerRun("rbpf-slam", trajectory, seconds, peak, wall)
+
+
+def run_icp_slam(log, odometry, workdir) -> PeerRun:
+    """icp-slam over every scan of `log` with `odometry` (N, 3)."""
+    workdir = Path(workdir)
+    workdir.mkdir(parents=True, exist_ok=True)
+    rawlog = workdir / "scans.rawlog"
+    write_rawlog(log, odometry, rawlog)
+    out = workdir / "icp-out"
+    config = _config(ICP_CONFIG, workdir / "icp-slam.ini", {"logOutput_dir": str(out)})
+    seconds, peak, wall = _run(["icp-slam", str(config), str(rawlog)], workdir / "icp-slam.out")
+    rows = np.loadtxt(out / "log_estimated_path.txt", comments="%", ndmin=2)
+    if len(rows) != len(log.stamps):
+        raise RuntimeError(f"icp-slam: {len(rows)} poses for {len(log.stamps)} scans")
+    return PeerRun("icp-slam", rows[:, 1:4].copy(), seconds, peak, wall)
+
+
+def _run(command, output):
+    """Run a peer to completion: (CPU s of user + sys, peak RSS MB, wall s) of its process."""
+    started = time.monotonic()
+    with open(output, "w") as stream:
+        process = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=stream,
+                                   stderr=subprocess.STDOUT, cwd=output.parent,
+                                   env={**os.environ, "DISPLAY": ""})
+        deadline = started + PEER_TIMEOUT
+        while True:
+            pid, status, usage = os.wait4(process.pid, os.WNOHANG)
+            if pid:
+                break
+            if time.monotonic() > deadline:
+                process.kill()
+                _, status, usage = os.wait4(process.pid, 0)
+                break
+            time.sleep(0.05)
+    process.returncode = os.waitstatus_to_exitcode(status)
+    wall = time.monotonic() - started
+    if process.returncode != 0:
+        tail = output.read_text(errors="replace").strip().splitlines()[-3:]
+        raise RuntimeError(f"{command[0]} exited with {process.returncode} after {wall:.0f} s: "
+                           + " | ".join(tail))
+    return usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024.0, wall
+
+
+def _config(template, path, values):
+    """A copy of an .ini file with some keys of [MappingApplication] set to `values`."""
+    lines, section, seen = [], None, set()
+    for line in template.read_text().splitlines():
+        stripped = line.strip()
+        if stripped.startswith("["):
+            section = stripped
+        key = stripped.split("=", 1)[0].strip() if "=" in stripped and not stripped.startswith("#") else None
+        if section == "[MappingApplication]" and key in values:
+            line = f"{key} = {values[key]}"
+            seen.add(key)
+        lines.append(line)
+    missing = set(values) - seen
+    if missing:
+        raise ValueError(f"{template}: no {', '.join(sorted(missing))} in [MappingApplication]")
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _settings(config):
+    """The filter-step thresholds of an rbpf-slam .ini: (localize m, localize rad, insert m, insert rad)."""
+    values = {}
+    section = None
+    for line in config.read_text().splitlines():
+        stripped = line.split("//", 1)[0].strip()
+        if stripped.startswith("["):
+            section = stripped
+        elif section == "[MappingApplication]" and "=" in stripped and not stripped.startswith("#"):
+            key, value = (part.strip() for part in stripped.split("=", 1))
+            values[key] = value
+    return (float(values["localizeLinDistance"]), math.radians(float(values["localizeAngDistance_deg"])),
+            float(values["insertionLinDistance"]), math.radians(float(values["insertionAngDistance_deg"])))
+
+
+def _filter_steps(odometry, settings):
+    """(N,) bool: at which scans rbpf-slam runs its filter (CMetricMapBuilderRBPF's rule: the
+    first scan, and whenever odometry since the last filter step or map update passes a threshold)."""
+    localize_xy, localize_yaw, insert_xy, insert_yaw = settings
+    steps = np.zeros(len(odometry), dtype=bool)
+    since_localized = since_inserted = (0.0, 0.0, 0.0)
+    for index in range(len(odometry)):
+        step = _relative(odometry[index - 1], odometry[index]) if index else (0.0, 0.0, 0.0)
+        since_localized = _compose(since_localized, step)
+        since_inserted = _compose(since_inserted, step)
+        insert = index == 0 or math.hypot(*since_inserted[:2]) > insert_xy or abs(since_inserted[2]) > insert_yaw
+        localize = insert or math.hypot(*since_localized[:2]) > localize_xy or abs(since_localized[2]) > localize_yaw
+        if localize:
+            steps[index] = True
+            since_localized = (0.0, 0.0, 0.0)
+        if insert:
+            since_inserted = (0.0, 0.0, 0.0)
+    return steps
+
+
+def _fill_between_steps(path, steps, odometry):
+    """A pose per scan from the filter's poses at its steps, moving by odometry in between."""
+    trajectory = np.zeros((len(steps), 3))
+    poses = iter(path)
+    last_pose, last_index = None, None
+    for index, stepped in enumerate(steps):
+        if stepped:
+            last_pose, last_index = tuple(next(poses)), index
+            trajectory[index] = last_pose
+        else:
+            trajectory[index] = _compose(last_pose, _relative(odometry[last_index], odometry[index]))
+    return trajectory
+
+
+def _compose(a, b):
+    cos, sin = math.cos(a[2]), math.sin(a[2])
+    return (a[0] + cos * b[0] - sin * b[1], a[1] + sin * b[0] + cos * b[1], _wrap(a[2] + b[2]))
+
+
+def _relative(a, b):
+    cos, sin = math.cos(a[2]), math.sin(a[2])
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    return (cos * dx + sin * dy, -sin * dx + cos * dy, _wrap(b[2] - a[2]))
+
+
+def _wrap(angle):
+    return math.atan2(math.sin(angle), math.cos(angle))
+
+
+def main(names):
+    """Quick check: both peers on some logs with severe odometry, scored as our SLAM is."""
+    from testkit.real_data import load_log, score
+    from turtlebot3c_sim.odometry_error import SEVERITIES, noisy_odometry
+
+    reason = available()
+    if reason:
+        print(f"MRPT peers unavailable: {reason}")
+        return 1
+    for name in names or ["aces", "freiburg-101"]:
+        log = load_log(name)
+        odometry = noisy_odometry(log.reference, SEVERITIES["severe"], 0)
+        odo = score(log, odometry)
+        print(f"{name}: {len(log.stamps)} scans; odometry {odo.translation:.3f} m {odo.rotation:.2f} deg")
+        with tempfile.TemporaryDirectory(prefix="mrpt-peers-") as folder:
+            for run in (run_rbpf_slam(log, odometry, 0, folder), run_icp_slam(log, odometry, folder)):
+                result = score(log, run.trajectory)
+                print(f"  {run.name:9s} {result.translation:.3f} m {result.rotation:.2f} deg "
+                      f"ATE {result.ate:.3f} m  cpu {run.seconds:.1f} s  wall {run.wall_seconds:.1f} s  "
+                      f"rss {run.peak_rss_mb:.0f} MB")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.path[:0] = [str(REPO)] + [str(REPO / "src" / package / "src") for package in
+                                  ("turtlebot3c_common", "turtlebot3c_sim", "turtlebot3c_slam", "turtlebot3c_maps")]
+    sys.exit(main(sys.argv[1:]))
