@@ -10,8 +10,12 @@ How:
   on first use into build/mrpt-converter/ against libmrpt-obs-dev) writes the "actions and
   observations" rawlog: per scan a CActionRobotMovement2D with the odometry increment and a
   CSensoryFrame with the CObservation2DRangeScan.
-- The motion model of each increment is Thrun's with GMapping's odometry noise (srr 0.1,
-  srt 0.2, str 0.1, stt 0.2); with MRPT's default noise rbpf-slam diverges on real data.
+- The motion model of each increment carries GMapping's odometry noise (srr 0.1, srt 0.2,
+  str 0.1, stt 0.2) in MRPT's Gaussian model (std linear in distance and turn, as Thrun's): MRPT
+  recomputes the distribution when it reads a rawlog, and its Thrun model is a set of random
+  samples whose mean, the odometry the apps use, then errs at random (icp-slam unseeded: runs
+  on aces differed from 0.48 to 2.7 m). With MRPT's default noise rbpf-slam diverges on real
+  data (issue #21); pfOptimalProposal itself uses only the mean, as the start of its scan match.
 - No-return readings (+inf) are stored as invalid beams; the fan of beams is centred with the
   sensor's yaw, as MRPT spreads the beams evenly over the aperture (180 beams 1 degree apart from
   -90 degrees are a 179 degree aperture turned by -0.5 degree).
@@ -48,12 +52,14 @@ MRPT_INCLUDE = Path("/usr/include/mrpt")
 MRPT_LIBRARIES = ("mrpt-obs", "mrpt-poses", "mrpt-serialization", "mrpt-io", "mrpt-core",
                   "mrpt-system", "mrpt-math")
 
-# Thrun's motion model alphas (MRPT's names) with GMapping's odometry noise: srr 0.1 (m per m),
-# srt 0.2 (m per rad), str 0.1 (rad per m), stt 0.2 (rad per rad), as ROS gmapping documents them.
-ALFA1_ROT_ROT = 0.2      # stt
-ALFA2_ROT_TRANS = 0.1    # str
-ALFA3_TRANS_TRANS = 0.1  # srr
-ALFA4_TRANS_ROT = 0.2    # srt
+# Odometry noise, GMapping's values as ROS gmapping documents them, in MRPT's Gaussian motion
+# model (std linear in the distance and the turn, as GMapping's and Thrun's models):
+ODOMETRY_NOISE = (0.1,   # a1, m per m: srr
+                  0.2,   # a2, m per rad: srt
+                  0.1,   # a3, rad per m: str
+                  0.2,   # a4, rad per rad: stt
+                  0.001,  # m, at least
+                  0.001)  # rad, at least
 RANGE_STD = 0.01         # m, a SICK LMS's range noise
 MAX_RANGE = 30.0         # m: farther readings are dropped as no-return (aces, icp-slam: 30 m beat 80, 15, 8 m)
 PEER_TIMEOUT = 3600.0    # s of wall time for one peer run
@@ -111,7 +117,7 @@ def write_rawlog(log, odometry, path):
     text = Path(str(path) + ".txt")
     with open(text, "w") as stream:
         stream.write(f"{beams} {aperture!r} {sensor_yaw!r} {MAX_RANGE} {RANGE_STD} "
-                     f"{ALFA1_ROT_ROT} {ALFA2_ROT_TRANS} {ALFA3_TRANS_TRANS} {ALFA4_TRANS_ROT}\n")
+                     + " ".join(str(value) for value in ODOMETRY_NOISE) + "\n")
         for index, (stamp, ranges) in enumerate(zip(log.stamps, log.ranges)):
             step = _relative(odometry[index - 1], odometry[index]) if index else (0.0, 0.0, 0.0)
             readings = np.where(np.isfinite(ranges), ranges, -1.0)

@@ -3,16 +3,21 @@
 //
 // Built by benchmarks/mrpt_peers.py against libmrpt-obs-dev (MRPT 2.x). Input, whitespace
 // separated:
-//   line 1:  beams aperture_rad sensor_yaw_rad max_range_m std_error_m alfa1_rot_rot
-//            alfa2_rot_trans alfa3_trans_trans alfa4_trans_rot
+//   line 1:  beams aperture_rad sensor_yaw_rad max_range_m std_error_m a1 a2 a3 a4 min_std_xy
+//            min_std_phi   (the odometry noise, MRPT's Gaussian motion model: std of x and y =
+//            min_std_xy + a1 distance + a2 |turn|, of the heading = min_std_phi + a3 distance +
+//            a4 |turn|, SI units)
 //   then one line per scan:  stamp_s dx dy dtheta r_0 .. r_{beams-1}
 // where (dx, dy, dtheta) is the odometry increment since the previous scan in the previous
 // scan's frame, ranges go right to left, beam i at sensor_yaw - aperture/2 + i aperture/(beams-1)
 // in the robot's frame (MRPT spreads the beams over the aperture from the first to the last, so
 // a fan not centred on the robot's heading, e.g. 180 beams from -90 to +89 degrees, needs the
 // sensor turned), and a range <= 0 marks a no-return reading (stored as invalid). Each scan becomes one CActionCollection (a
-// CActionRobotMovement2D with Thrun's motion model and the given alphas) followed by one
-// CSensoryFrame (a CObservation2DRangeScan).
+// CActionRobotMovement2D) followed by one CSensoryFrame (a CObservation2DRangeScan).
+// The motion model is MRPT's Gaussian one, not Thrun's: a rawlog keeps the raw increment and
+// the model, and the reader recomputes the distribution; Thrun's model is a set of random
+// samples whose mean (what the SLAM apps use as odometry) is then off by a random amount, and
+// icp-slam does not seed its generator, so its runs differed (aces: 0.48 to 2.7 m).
 #include <mrpt/io/CFileGZOutputStream.h>
 #include <mrpt/obs/CActionCollection.h>
 #include <mrpt/obs/CActionRobotMovement2D.h>
@@ -38,19 +43,17 @@ int main(int argc, char** argv)
 	std::ifstream in(argv[1]);
 	size_t beams = 0;
 	double aperture = 0, sensorYaw = 0, maxRange = 0, stdError = 0;
-	float a1 = 0, a2 = 0, a3 = 0, a4 = 0;
-	if (!(in >> beams >> aperture >> sensorYaw >> maxRange >> stdError >> a1 >> a2 >> a3 >> a4) || beams < 2)
+	double a1 = 0, a2 = 0, a3 = 0, a4 = 0, minStdXY = 0, minStdPhi = 0;
+	if (!(in >> beams >> aperture >> sensorYaw >> maxRange >> stdError >> a1 >> a2 >> a3 >> a4 >>
+		  minStdXY >> minStdPhi) ||
+		beams < 2)
 	{
 		std::cerr << argv[1] << ": bad header\n";
 		return 1;
 	}
 	CActionRobotMovement2D::TMotionModelOptions motion;
-	motion.modelSelection = CActionRobotMovement2D::mmThrun;
-	motion.thrunModel.alfa1_rot_rot = a1;
-	motion.thrunModel.alfa2_rot_trans = a2;
-	motion.thrunModel.alfa3_trans_trans = a3;
-	motion.thrunModel.alfa4_trans_rot = a4;
-	motion.thrunModel.nParticlesCount = 100;
+	motion.modelSelection = CActionRobotMovement2D::mmGaussian;
+	motion.gaussianModel = {a1, a2, a3, a4, minStdXY, minStdPhi};
 
 	mrpt::io::CFileGZOutputStream out(argv[2]);
 	auto archive = mrpt::serialization::archiveFrom(out);
