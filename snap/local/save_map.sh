@@ -15,7 +15,7 @@ trap 'rm -rf -- "$work"' EXIT
 
 # A master that crashed is back within seconds (the roscore app): wait for it rather than lose
 # the map, but not for ever (SLAM's map cannot be had without a master).
-if ! ROS_MASTER_WAIT="${SAVE_MASTER_WAIT:-30}" wait_for_master.sh; then
+if ! ROS_MASTER_WAIT="${SAVE_MASTER_WAIT:-30}" "$(dirname -- "$0")/wait_for_master.sh"; then
   echo "save_map: the map could not be saved: no ROS master to get it from" >&2
   exit 1
 fi

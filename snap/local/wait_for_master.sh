@@ -9,7 +9,7 @@
 set -eu
 
 # shellcheck disable=SC1091 # snap/local/ros_master.sh, in the snap's usr/bin
-. "$SNAP/usr/bin/ros_master.sh"
+. "$(dirname -- "$0")/ros_master.sh"
 
 uri="${ROS_MASTER_URI:-http://localhost:11311}"
 timeout_s="${ROS_MASTER_WAIT:-60}"
