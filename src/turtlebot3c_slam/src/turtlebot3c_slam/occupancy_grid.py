@@ -179,10 +179,11 @@ class LogOddsGrid:
         target = (slice(w[1], w[1] + b[1] - a[1]), slice(w[0], w[0] + b[0] - a[0]))
         # One net hit is full evidence; unknown and free cells give none.
         strength[target] = np.clip(self.log_odds[rows, cols] / self.hit_log_odds, 0.0, 1.0)
-        counts = self.hit_counts[rows, cols]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            mean = self.hit_sums[rows, cols] / counts[:, :, None] - 0.5
-        offsets[target] = np.where(counts[:, :, None] > 0.5, mean, 0.0)
+        hit_rows, hit_cols = np.nonzero(self.hit_counts[rows, cols] > 0.5)
+        if len(hit_rows):
+            counts = self.hit_counts[rows, cols][hit_rows, hit_cols]
+            mean = self.hit_sums[rows, cols][hit_rows, hit_cols] / counts[:, None] - 0.5
+            offsets[target][hit_rows, hit_cols] = mean
         return strength, offsets
 
     def to_occupancy_map(self, occupied_probability=0.65, free_probability=0.45, margin=2):

@@ -71,6 +71,13 @@ class PoseGraph:
         b[:, 2, 2] = 1.0
         return error, a, b
 
+    def edge_errors(self):
+        """(E, 3) error of each edge at the current poses: x, y in the measurement's frame, yaw."""
+        if not self.edges:
+            return np.zeros((0, 3))
+        i, j, measurement, _, _ = self._arrays()
+        return self._errors_and_jacobians(i, j, measurement)[0]
+
     def chi2(self):
         if not self.edges:
             return 0.0

@@ -26,27 +26,27 @@ def likelihood_field(strength, offsets=None, sigma_cells=1.0, radius=2):
     the distance from their centres to where its hits were (`offsets` (h, w, 2), in cells,
     from the obstacle cell's centre; default the centre); a cell keeps the largest value.
     Sampled at cell centres and interpolated, the field peaks where the hits were, not at
-    the centres of their cells, so matching is not biased by the grid.
+    the centres of their cells, so matching is not biased by the grid. The work grows with
+    the obstacle cells, not the window: a map is mostly free and unknown space.
     """
     height, width = strength.shape
+    rows, cols = np.nonzero(strength > 0)
+    values = strength[rows, cols].astype(np.float32)
     if offsets is None:
-        offsets = np.zeros((height, width, 2), dtype=np.float32)
-    size = (height + 2 * radius, width + 2 * radius)
-    padded = np.zeros(size, dtype=np.float32)
-    padded[radius:radius + height, radius:radius + width] = strength
-    padded_dx = np.zeros(size, dtype=np.float32)
-    padded_dx[radius:radius + height, radius:radius + width] = offsets[:, :, 0]
-    padded_dy = np.zeros(size, dtype=np.float32)
-    padded_dy[radius:radius + height, radius:radius + width] = offsets[:, :, 1]
-    field = np.zeros((height, width), dtype=np.float32)
+        hit_x = hit_y = np.zeros(len(rows), dtype=np.float32)
+    else:
+        hit_x, hit_y = offsets[rows, cols, 0], offsets[rows, cols, 1]
+    field = np.zeros((height + 2 * radius, width + 2 * radius), dtype=np.float32)
     scale = np.float32(-0.5 / sigma_cells ** 2)
     for dy in range(-radius, radius + 1):
         for dx in range(-radius, radius + 1):
-            window = (slice(radius + dy, radius + dy + height), slice(radius + dx, radius + dx + width))
-            gap_x = padded_dx[window] + np.float32(dx)
-            gap_y = padded_dy[window] + np.float32(dy)
-            np.maximum(field, padded[window] * np.exp(scale * (gap_x * gap_x + gap_y * gap_y)), out=field)
-    return field
+            # The cell dx, dy away from an obstacle cell is this far from its hits; within one
+            # (dx, dy) every obstacle reaches a different cell, so plain indexing takes the max.
+            gap_x, gap_y = hit_x - np.float32(dx), hit_y - np.float32(dy)
+            reached = values * np.exp(scale * (gap_x * gap_x + gap_y * gap_y))
+            target = (rows + radius + dy, cols + radius + dx)
+            field[target] = np.maximum(field[target], reached)
+    return field[radius:radius + height, radius:radius + width]
 
 
 class MatchResult:
@@ -103,6 +103,57 @@ class GridMatcher:
         world = _transform(points, pose)
         cols, rows = self._cell_indices(world[None])
         return float(self._scores(0, cols, rows, np.zeros((1, 3), dtype=np.int64))[0])
+
+    def _interpolate(self, world):
+        """Bilinearly interpolated field values at world points (N, 2), and their gradients by x and y (per m)."""
+        u = world[:, 0] / self.resolution - 0.5 - self.low[0]  # field samples sit at cell centres
+        v = world[:, 1] / self.resolution - 0.5 - self.low[1]
+        grid = self.pyramid[0]
+        height, width = grid.shape
+        col = np.clip(np.floor(u).astype(np.int64), 0, width - 2)
+        row = np.clip(np.floor(v).astype(np.int64), 0, height - 2)
+        fu, fv = np.clip(u - col, 0.0, 1.0), np.clip(v - row, 0.0, 1.0)
+        f00, f10 = grid[row, col], grid[row, col + 1]
+        f01, f11 = grid[row + 1, col], grid[row + 1, col + 1]
+        bottom, top = f00 + fu * (f10 - f00), f01 + fu * (f11 - f01)
+        values = bottom + fv * (top - bottom)
+        d_u = (1 - fv) * (f10 - f00) + fv * (f11 - f01)
+        d_v = top - bottom
+        return values, d_u / self.resolution, d_v / self.resolution
+
+    def refine(self, points, pose, iterations=8):
+        """Sub-cell pose: Gauss-Newton on the interpolated field from `pose` (a search result).
+
+        The correlative search is exact only to a cell and an angle step; a real robot's
+        sparse scans would add those steps up into drift. Returns a MatchResult whose score
+        is the interpolated mean field value; it never moves more than a cell or two.
+        """
+        current = np.array(pose, dtype=np.float64)
+        best, best_score = current.copy(), self._interpolated_score(points, current)
+        for _ in range(iterations):
+            cos, sin = math.cos(current[2]), math.sin(current[2])
+            world = _transform(points, current)
+            values, grad_x, grad_y = self._interpolate(world)
+            d_theta = grad_x * (-sin * points[:, 0] - cos * points[:, 1]) + \
+                grad_y * (cos * points[:, 0] - sin * points[:, 1])
+            jacobian = np.column_stack((grad_x, grad_y, d_theta))
+            residual = 1.0 - values
+            hessian = jacobian.T @ jacobian
+            step = np.linalg.solve(hessian + 1e-3 * np.diag(np.diag(hessian)) + 1e-9 * np.eye(3), jacobian.T @ residual)
+            limit = max(abs(step[0]), abs(step[1])) / self.resolution
+            if limit > 1.0:
+                step /= limit
+            current = current + step
+            score = self._interpolated_score(points, current)
+            if score <= best_score:
+                break
+            best, best_score = current.copy(), score
+        if math.hypot(best[0] - pose[0], best[1] - pose[1]) > 2 * self.resolution:
+            best, best_score = np.array(pose, dtype=np.float64), self._interpolated_score(points, pose)
+        return MatchResult((float(best[0]), float(best[1]), wrap_angle(float(best[2]))), float(best_score))
+
+    def _interpolated_score(self, points, pose):
+        return float(self._interpolate(_transform(points, pose))[0].mean())
 
     # --- search ----------------------------------------------------------------------------
 

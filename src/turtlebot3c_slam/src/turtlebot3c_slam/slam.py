@@ -11,16 +11,23 @@ Use::
 How it works:
 - *Tracking*: odometry since the last scan predicts the pose; the scan is matched against a
   local map made of the last `local_map_keyframes` keyframes (a log-odds grid that adds each
-  new keyframe's scan and takes back the oldest), searching a small window around the
-  prediction (scan_matcher). A poor match (score below `match_min_score`) keeps odometry.
+  new keyframe's scan and takes back the oldest), searching a window around the prediction
+  that is as wide as odometry may be wrong: 3 sigma, where sigma grows with the distance,
+  turn and time since the last good match (a real robot's wheels slip, scans may come a
+  metre apart). The correlative search (scan_matcher, branch and bound) finds the cell and
+  angle step; a Gauss-Newton step on the interpolated field refines it below a cell. A poor
+  match (score below `match_min_score`) keeps odometry, and the next scan searches wider.
 - *Keyframes*: after `keyframe_distance` metres or `keyframe_angle` radians, the scan becomes
   a node of the pose graph, chained to the previous keyframe by the tracked relative pose.
 - *Loop closure*: a new keyframe near an old part of the trajectory (more than
   `loop_min_travel` metres of path ago, within `loop_search_radius`) is matched, with the
   last few keyframes' points, against a submap built from the old keyframes around there,
-  over a wide window (branch and bound keeps that fast). A good match adds a robust edge and
-  the graph is optimised; the maps are then rebuilt from every keyframe at its new pose, so
-  the loop closes without doubled walls.
+  over a wide window (branch and bound keeps that fast). A good match is only a candidate:
+  corridors that look alike fool one match, so a closure is taken when a second one, within
+  `loop_pending_keyframes`, moves the map the same way; both become robust edges and the
+  graph is optimised, and an accepted closure the optimised graph still contradicts by more
+  than `loop_residual_*` is taken out again. The maps are then rebuilt from every keyframe at
+  its new pose, so the loop closes without doubled walls.
 - The map frame is the odometry frame at the first scan (map -> odom starts as identity).
 """
 import collections
@@ -65,7 +72,7 @@ class SlamConfig:
         # 3 sigma around the prediction, up to the max windows.
         ("match_sigma_xy", 0.03),         # m
         ("match_sigma_theta", 0.03),      # rad
-        ("odometry_error_distance", 0.05),  # m per m travelled
+        ("odometry_error_distance", 0.1),   # m per m travelled
         ("odometry_error_turn", 0.12),    # rad per rad turned
         ("odometry_error_heading", 0.03),  # rad per m travelled
         ("odometry_error_time", 0.01),    # m and rad per s (a slipping wheel)
@@ -77,7 +84,12 @@ class SlamConfig:
         ("loop_min_travel", 6.0),         # m of path between them
         ("loop_window_xy", 1.0),          # m, loop-closure search half-width
         ("loop_window_theta", 0.35),      # rad
-        ("loop_min_score", 0.55),         # mean likelihood needed to accept a closure
+        ("loop_min_score", 0.55),         # mean likelihood needed to consider a closure
+        ("loop_agreement_xy", 0.15),      # m: two closures agree when they move the map alike
+        ("loop_agreement_theta", 0.03),   # rad
+        ("loop_pending_keyframes", 10),   # keyframes a closure waits for one that agrees
+        ("loop_residual_xy", 0.2),        # m: a closure the optimised graph misses by more is dropped
+        ("loop_residual_theta", 0.035),   # rad
         ("loop_submap_keyframes", 12),    # old keyframes each side of the candidate in its submap
         ("loop_cloud_keyframes", 6),      # recent keyframes whose points form the query
         ("loop_attempt_every", 2),        # keyframes between loop-closure attempts
@@ -87,7 +99,7 @@ class SlamConfig:
         ("loop_sigma_theta", 0.02),       # rad
     ])
     INTEGERS = ("local_map_keyframes", "match_points", "loop_submap_keyframes", "loop_cloud_keyframes",
-                "loop_attempt_every")
+                "loop_attempt_every", "loop_pending_keyframes")
 
     def __init__(self, **values):
         unknown = sorted(set(values) - set(self.DEFAULTS))
@@ -147,6 +159,34 @@ class UnmatchedMotion:
         self.stamp = stamp
 
 
+class LoopClosure:
+    """A match of the newest keyframe against an old part of the map."""
+
+    def __init__(self, old, newest, measured, score, correction, at):
+        self.old, self.newest = old, newest
+        self.at = at                  # the newest keyframe's pose when matched
+        self.measured = measured      # the newest keyframe seen from the old one
+        self.score = score
+        self.correction = correction  # the rigid motion the match applies to the newest keyframe's map
+
+    def agrees_with(self, other, config):
+        """Whether both closures move the map alike (compared where the other was matched)."""
+        here = other.at
+        mine, theirs = compose(self.correction, here), compose(other.correction, here)
+        return distance(mine, theirs) <= config.loop_agreement_xy and \
+            abs(wrap_angle(mine[2] - theirs[2])) <= config.loop_agreement_theta
+
+    def moves_map(self, config):
+        return math.hypot(self.correction[0], self.correction[1]) > config.resolution * 0.5 or \
+            abs(self.correction[2]) > 0.005
+
+    def is_edge(self, edge):
+        return edge.i == self.old and edge.j == self.newest and edge.measurement == tuple(self.measured)
+
+    def edge_in(self, graph):
+        return any(self.is_edge(edge) for edge in graph.edges if edge.robust)
+
+
 class Keyframe:
     def __init__(self, stamp, rays, points, travel):
         self.stamp = stamp
@@ -176,6 +216,8 @@ class Slam:
         self.loop_closures = []    # (old keyframe, new keyframe, new seen from old, score)
         self.poor_matches = 0
         self._unmatched = UnmatchedMotion()
+        self._pending_closures = []
+        self.rejected_loop_closures = 0
 
     def _new_grid(self, resolution, cell_shift=0.0):
         return LogOddsGrid(resolution, self.config.hit_log_odds, self.config.free_log_odds, cell_shift)
@@ -242,7 +284,7 @@ class Slam:
             self.poor_matches += 1
             return predicted
         self._unmatched = UnmatchedMotion(self._unmatched.stamp)
-        return result.pose
+        return matcher.refine(points, result.pose).pose
 
     def _tracking_window(self):
         """Search half-widths (m, rad): 3 sigma of how far odometry may have drifted since the last good match."""
@@ -372,13 +414,46 @@ class Slam:
         result = matcher.match(cloud, current, config.loop_window_xy, config.loop_window_theta)
         if result.score < config.loop_min_score:
             return
-        measured = relative(tuple(self.graph.poses[candidate]), result.pose)
-        self.graph.add_edge(candidate, newest, measured,
-                            self._information(config.loop_sigma_xy, config.loop_sigma_theta), robust=True)
-        self.loop_closures.append((candidate, newest, measured, result.score))
-        if distance(result.pose, current) > config.resolution * 0.5 or \
-                abs(wrap_angle(result.pose[2] - current[2])) > 0.005:
+        pose = matcher.refine(cloud, result.pose).pose
+        closure = LoopClosure(candidate, newest, relative(tuple(self.graph.poses[candidate]), pose), result.score,
+                              compose(pose, inverse(current)), current)
+        self._consider_loop_closure(closure)
+
+    def _consider_loop_closure(self, closure):
+        """Close loops only on closures that agree: one match can be fooled by corridors that look
+        alike, two from different places rarely agree on the same wrong correction. Accepted
+        closures that the optimised graph then contradicts are taken out again."""
+        config = self.config
+        self._pending_closures = [pending for pending in self._pending_closures
+                                  if closure.newest - pending.newest <= config.loop_pending_keyframes]
+        agreeing = [pending for pending in self._pending_closures if pending.agrees_with(closure, config)]
+        if not agreeing:
+            self._pending_closures.append(closure)
+            return
+        self._pending_closures = [pending for pending in self._pending_closures if pending not in agreeing]
+        accepted = agreeing + [closure]
+        information = self._information(config.loop_sigma_xy, config.loop_sigma_theta)
+        for each in accepted:
+            self.graph.add_edge(each.old, each.newest, each.measured, information, robust=True)
+        if any(each.moves_map(config) for each in accepted):
             self._optimize()
+            self._drop_contradicted_closures(accepted)
+        self.loop_closures.extend((each.old, each.newest, each.measured, each.score)
+                                  for each in accepted if each.edge_in(self.graph))
+
+    def _drop_contradicted_closures(self, accepted):
+        errors = self.graph.edge_errors()
+        index = {id(edge): position for position, edge in enumerate(self.graph.edges)}
+        wrong = [edge for edge in self.graph.edges if edge.robust and any(
+            each.is_edge(edge) for each in accepted) and self._contradicts(errors[index[id(edge)]])]
+        if wrong:
+            self.graph.edges = [edge for edge in self.graph.edges if edge not in wrong]
+            self.rejected_loop_closures += len(wrong)
+            self._optimize()
+
+    def _contradicts(self, error):
+        return math.hypot(error[0], error[1]) > self.config.loop_residual_xy or \
+            abs(error[2]) > self.config.loop_residual_theta
 
     def _recent_cloud(self, newest):
         current = tuple(self.graph.poses[newest])

@@ -1,0 +1,64 @@
+"""SLAM on real laser data (a Radish log, benchmarks/data/radish) with odometry as wrong as a real robot's.
+
+Our simulator's odometry is kinder than a carpet, a bump or a turn on the spot: these tests
+would have caught SLAM that is as wrong as raw odometry on real scans.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from testkit.real_data import load_log, run_slam, score
+from turtlebot3c_common.se2 import compose, relative
+from turtlebot3c_sim.evaluation import false_relations, relative_pose_errors
+from turtlebot3c_sim.odometry_error import SEVERITIES, noisy_odometry
+
+REGRESSION_LOG, REGRESSION_SCANS = "freiburg-101", 150
+
+
+@pytest.fixture(scope="module")
+def log():
+    return load_log(REGRESSION_LOG, REGRESSION_SCANS)
+
+
+def test_a_radish_log_reads_as_a_half_turn_scan_with_no_returns_marked(log):
+    assert log.ranges.shape == (REGRESSION_SCANS, 360)
+    assert log.angle_min == pytest.approx(-math.pi / 2)
+    assert log.angle_increment == pytest.approx(math.radians(0.5))
+    assert np.isinf(log.ranges).any(), "SICK's 81.91 m 'no return' must not read as an echo"
+    assert np.isfinite(log.ranges).mean() > 0.5
+    assert (np.diff(log.stamps) > 0).all()
+
+
+def test_the_severe_odometry_error_is_as_bad_as_a_real_robot_and_seeded(log):
+    first = noisy_odometry(log.reference, SEVERITIES["severe"], seed=3)
+    assert np.array_equal(first, noisy_odometry(log.reference, SEVERITIES["severe"], seed=3))
+    assert not np.array_equal(first, noisy_odometry(log.reference, SEVERITIES["severe"], seed=4))
+    path = np.hypot(*np.diff(first[:, :2], axis=0).T).sum()
+    assert abs(path / log.travel()[-1] - 1.0) > 0.05
+    odometry = relative_pose_errors(first, log.reference, log.travel())
+    assert odometry.translation > 0.3 and math.degrees(odometry.rotation) > 5.0
+
+
+def test_the_relations_metric_ignores_where_the_map_frame_lies_but_not_a_bent_path(log):
+    moved = np.array([compose((5.0, -2.0, 1.0), tuple(pose)) for pose in log.reference])
+    unmoved = relative_pose_errors(moved, log.reference, log.travel())
+    assert unmoved.translation == pytest.approx(0.0, abs=1e-9) and unmoved.pairs > 100
+    bent = log.reference.copy()
+    bent[len(bent) // 2:, 2] += 0.05
+    assert relative_pose_errors(bent, log.reference, log.travel()).rotation > 0.002  # pairs across the bend
+
+
+def test_a_loop_closure_that_contradicts_the_reference_is_counted_false(log):
+    right = (0, 40, relative(tuple(log.reference[0]), tuple(log.reference[40])))
+    wrong = (0, 40, tuple(np.add(right[2], (1.0, 0.0, 0.0))))
+    assert false_relations([right], log.reference) == 0
+    assert false_relations([right, wrong], log.reference) == 1
+
+
+def test_slam_on_real_scans_with_severe_odometry_stays_close_to_the_reference_with_no_false_loop(log):
+    run = run_slam(log, "severe", seed=1)
+    ours, odometry = score(log, run.trajectory, run.closures), score(log, run.odometry)
+    assert ours.translation < 0.08 and ours.rotation < 0.8, ours
+    assert ours.translation < 0.1 * odometry.translation, (ours, odometry)
+    assert ours.false_closures == 0, run.closures
