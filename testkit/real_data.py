@@ -81,3 +81,172 @@ def score(log, trajectory, closures=()):
     return Score(relations.translation, math.degrees(relations.rotation),
                  aligned_trajectory_error(trajectory, log.reference), len(closures),
                  false_relations(list(closures), log.reference))
+
+
+# --- AMCL on the same logs --------------------------------------------------------------------
+#
+# Localisation on a map of the log itself: the reference map (every scan drawn at its reference
+# pose), then the scans replayed with odometry of a severity through turtlebot3c_navigation's
+# ParticleFilter, started AMCL_START_OFFSET off the first reference pose with an initial
+# covariance that holds the truth, scored per scan against the reference poses.
+
+AMCL_MAP_RESOLUTION = 0.05      # m
+AMCL_MAP_RANGE = 80.0           # m: the SICK scanners' reach; rays are drawn into the map up to it
+AMCL_HIT_LOG_ODDS, AMCL_FREE_LOG_ODDS = 0.85, -0.4   # as the SLAM's grid
+# What a ROS user sets for these robots (a SICK LMS, 180 degrees, up to 80 m, scans ~1 m apart)
+# where the shipped config/amcl.yaml is for the TurtleBot3's 3.5 m LDS. One set for every log
+# and severity: no per-dataset tuning.
+AMCL_PARAMS = dict(
+    laser_max_range=AMCL_MAP_RANGE,  # the scanner's reach (amcl.yaml: the LDS's 3.5 m)
+    laser_sigma_hit=0.1,             # a SICK measures to a centimetre or two; the map's cells are 5 cm
+    min_particles=2000,              # scans 1 m and up to 80 degrees apart: a wide cloud after each move
+    # The odometry's noise, as for any robot (amcl's odom_alpha1..4): up to 0.3 rad per radian
+    # turned, 10 % of the distance, heading drift per metre (the severe model's figures).
+    odom_alpha1=0.2, odom_alpha2=0.005, odom_alpha3=0.02, odom_alpha4=0.01,
+)
+AMCL_START_OFFSET = (1.0, 0.5)  # m, rad off the first reference pose
+AMCL_INITIAL_STD = (0.75, 0.75, 0.5)  # m, m, rad: the initial pose's standard deviations (truth within ~1.3 sigma)
+AMCL_BOUND = (0.1, 3.0)         # m, deg: converged when within these and staying (see converged_scan)
+AMCL_HOLD_SCANS = 10            # the window over which "staying" is judged
+
+
+def reference_map(log, resolution=AMCL_MAP_RESOLUTION, max_range=AMCL_MAP_RANGE):
+    """OccupancyMap (100 / 0 / -1) of every scan of `log` drawn at its reference pose.
+
+    Log-odds per cell as the SLAM's grid (a hit adds AMCL_HIT_LOG_ODDS, a ray through it
+    AMCL_FREE_LOG_ODDS, each scan counting a cell once), so people walking by are cleared by
+    later rays; readings beyond `max_range` and no-returns are free rays up to `max_range`.
+    """
+    from turtlebot3c_maps.map_files import OccupancyMap
+
+    angles = log.angle_min + np.arange(log.beams) * log.angle_increment
+    ranges = np.where(np.isfinite(log.ranges), log.ranges, np.inf)
+    hit = ranges < max_range
+    reach = np.where(hit, ranges, max_range)
+    low = (log.reference[:, :2] - reach.max(axis=1)[:, None]).min(axis=0) - 2 * resolution
+    high = (log.reference[:, :2] + reach.max(axis=1)[:, None]).max(axis=0) + 2 * resolution
+    width, height = (np.ceil((high - low) / resolution).astype(int) + 1)
+    log_odds = np.zeros(width * height)
+    seen = np.zeros(width * height, dtype=bool)
+    step = resolution / 2.0
+    for pose, scan_reach, scan_hit in zip(log.reference, reach, hit):
+        directions = pose[2] + angles
+        ends = pose[:2] + scan_reach[:, None] * np.column_stack((np.cos(directions), np.sin(directions)))
+        hits = _cells(ends[scan_hit], low, resolution, width)
+        samples = np.maximum(np.ceil(scan_reach / step).astype(int), 1)
+        ray = np.repeat(np.arange(len(samples)), samples)
+        fraction = (np.arange(ray.size) - np.repeat(np.cumsum(samples) - samples, samples)) / samples[ray]
+        points = pose[:2] + (ends[ray] - pose[:2]) * fraction[:, None]
+        free = np.setdiff1d(_cells(points, low, resolution, width), hits)
+        log_odds[free] += AMCL_FREE_LOG_ODDS
+        log_odds[hits] += AMCL_HIT_LOG_ODDS
+        seen[free] = seen[hits] = True
+    cells = np.full(width * height, -1, dtype=np.int8)
+    cells[seen & (log_odds >= math.log(0.65 / 0.35))] = 100
+    cells[seen & (log_odds <= math.log(0.45 / 0.55))] = 0
+    return OccupancyMap(cells.reshape(height, width), resolution, (float(low[0]), float(low[1]), 0.0))
+
+
+def _cells(points, low, resolution, width):
+    """Unique flat indices (row * width + col) of the cells holding `points`."""
+    col_row = np.floor((points - low) / resolution).astype(np.int64)
+    return np.unique(col_row[:, 1] * width + col_row[:, 0])
+
+
+class AmclRun(NamedTuple):
+    poses: np.ndarray               # (N, 3) the filter's pose per scan (map frame)
+    odometry: np.ndarray            # (N, 3) the odometry it was given
+    translation_errors: np.ndarray  # (N,) m against the reference
+    rotation_errors: np.ndarray     # (N,) deg
+    converged_at: int | None        # scan from which it is within AMCL_BOUND and stays (None: never)
+    translation: float              # m, mean error from converged_at on (nan if it never converged)
+    rotation: float                 # deg
+    held: float                     # share of the scans from converged_at on within AMCL_BOUND
+    scans_per_second: float         # on one core (CPU time of the filter alone)
+    updates: int                    # filter updates (each scan that moved update_min_d / update_min_a)
+    relocalizations: int            # global relocalisations the filter started by itself
+
+    @property
+    def converged(self):
+        return self.converged_at is not None
+
+
+def amcl_params(**overrides):
+    from turtlebot3c_navigation.amcl import AmclParams
+
+    return AmclParams()._replace(**dict(AMCL_PARAMS, **overrides))
+
+
+def run_amcl(log, severity, seed=1, params=None, occupancy_map=None, offset=AMCL_START_OFFSET):
+    """AMCL over every scan of `log` with odometry of `severity` (a name in SEVERITIES), started
+    offset[0] m (diagonally) and offset[1] rad off the first reference pose; the map is the log's
+    reference_map unless given. The filter's seed is `seed` too."""
+    from turtlebot3c_common.se2 import wrap_angle
+    from turtlebot3c_navigation.navigation_stack import Localizer, make_filter, map_layers
+
+    occupancy_map = occupancy_map if occupancy_map is not None else reference_map(log)
+    layers = map_layers(occupancy_map.data, occupancy_map.resolution, occupancy_map.origin)
+    localizer = Localizer(make_filter(layers, params or amcl_params(), seed=seed))
+    odometry = noisy_odometry(log.reference, SEVERITIES[severity], seed)
+    x, y, yaw = log.reference[0]
+    shift = offset[0] / math.sqrt(2.0)
+    localizer.set_pose((x + shift, y + shift, yaw + offset[1]), tuple(odometry[0]),
+                       np.diag(np.square(AMCL_INITIAL_STD)))
+    angles = log.angle_min + np.arange(log.beams) * log.angle_increment
+    poses, updates = np.zeros((len(log.stamps), 3)), 0
+    started = time.process_time()
+    for index, (ranges, odom) in enumerate(zip(log.ranges, odometry)):
+        odom = tuple(odom)
+        updates += localizer.update(odom, ranges, angles, 0.0, (0.0, 0.0, 0.0))
+        poses[index] = localizer.pose(odom)
+    seconds = time.process_time() - started
+    translation_errors = np.hypot(*(poses[:, :2] - log.reference[:, :2]).T)
+    rotation_errors = np.degrees(np.abs(wrap_angle(poses[:, 2] - log.reference[:, 2])))
+    start = converged_scan(translation_errors, rotation_errors)
+    if start is None:
+        translation = rotation = held = math.nan
+    else:
+        translation = float(translation_errors[start:].mean())
+        rotation = float(rotation_errors[start:].mean())
+        held = float(np.mean((translation_errors[start:] < AMCL_BOUND[0]) & (rotation_errors[start:] < AMCL_BOUND[1])))
+    return AmclRun(poses, odometry, translation_errors, rotation_errors, start, translation, rotation, held,
+                   len(poses) / seconds if seconds > 0 else math.inf, updates, localizer.filter.relocalizations)
+
+
+def converged_scan(translation_errors, rotation_errors, bound=AMCL_BOUND, hold=AMCL_HOLD_SCANS):
+    """The first scan k within `bound` (m, deg) from which the pose stays there: in every `hold`
+    consecutive scans from k to the end, at least half are within it. A scan or a few off by more
+    (where the reference itself is off, or a wheel slipped a step) do not undo convergence; a
+    filter that loses the robot does. None when there is no such scan with `hold` scans after it."""
+    within = (np.asarray(translation_errors, dtype=float) < bound[0]) & \
+        (np.asarray(rotation_errors, dtype=float) < bound[1])
+    if len(within) < hold:
+        return None
+    share = np.convolve(within, np.ones(hold) / hold, mode="valid")   # over scans i .. i + hold - 1
+    bad_from = np.flip(np.cumsum(np.flip(share < 0.5))) > 0          # a bad window starts at i or later
+    candidates = np.nonzero(within[:len(share)] & ~bad_from)[0]
+    return int(candidates[0]) if candidates.size else None
+
+
+class AmclFigures(NamedTuple):
+    translation: float      # m, mean error after convergence
+    rotation: float         # deg
+    converged_at: int | None
+    scans_per_second: float
+    converged: bool
+    held: float             # share of the scans after convergence within AMCL_BOUND
+
+
+_REFERENCE_MAPS = {}
+
+
+def amcl_figures(name, severity, seed=1, scans=None):
+    """AMCL's figures on the Radish log `name` with odometry of `severity`, for the benchmark's
+    table. The log's reference map is built once per process and kept."""
+    log = load_log(name, scans)
+    key = (name, len(log.stamps))
+    if key not in _REFERENCE_MAPS:
+        _REFERENCE_MAPS[key] = reference_map(log)
+    run = run_amcl(log, severity, seed, occupancy_map=_REFERENCE_MAPS[key])
+    return AmclFigures(run.translation, run.rotation, run.converged_at, run.scans_per_second, run.converged,
+                       run.held)

@@ -264,14 +264,18 @@ class ParticleFilter:
             return
         converged = self.converged()
         scale = self.params.likelihood_scale if converged else self.params.likelihood_scale_spread
-        log_w = self.field.log_likelihood(self.particles, ranges, angles, sensor_offset) * scale
-        log_w += np.log(np.maximum(self.weights, 1e-300))
+        log_likelihood = self.field.log_likelihood(self.particles, ranges, angles, sensor_offset)
+        log_prior = np.log(np.maximum(self.weights, 1e-300))
+        log_w = log_likelihood * scale + log_prior
         peak = log_w.max()
         weights = np.exp(log_w - peak)
-        total = weights.sum()
-        self.weights = weights / total
-        # Average per-beam likelihood of the cloud, the quantity Augmented MCL tracks.
-        mean_likelihood = math.exp((peak + math.log(total / weights.size)) / ranges.size)
+        self.weights = weights / weights.sum()
+        # Average per-beam likelihood of the cloud, the quantity Augmented MCL tracks: of the
+        # sensor model itself, not of the scaled weights, so that it means the same whether
+        # the cloud was spread (likelihood_scale_spread) or not when w_slow and w_fast saw it.
+        expected = log_likelihood + log_prior
+        top = expected.max()
+        mean_likelihood = math.exp((top + math.log(np.exp(expected - top).sum())) / ranges.size)
         self._track_likelihood(mean_likelihood)
         self.estimate = self._estimate()
 
