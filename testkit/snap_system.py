@@ -276,7 +276,7 @@ def main_command_line(system, app):
             words = Path(f"/proc/{pid}/cmdline").read_bytes().decode().rstrip("\0").split("\0")
         except OSError:
             return None
-        return words if any(word.endswith("/roslaunch") for word in words) else None
+        return words if any(word.endswith(("/roslaunch", "/roslaunch_joining.py")) for word in words) else None
     return wait_until(launched, 60, lambda: f"{app} never exec'd roslaunch:\n{system.logs('turtlebot3c')}")
 
 

@@ -18,7 +18,7 @@ esac
 export TURTLEBOT3_MODEL="$model"
 export LDS_MODEL="$lds_model"
 
-# The master is the roscore app's: wait for it (bounded), and never start one (--wait).
-exec wait_for_master.sh roslaunch --wait turtlebot3c_bringup turtlebot3c_bringup.launch \
+# The master is the roscore app's: wait for it (bounded), and never start one (roslaunch_joining.py).
+exec wait_for_master.sh roslaunch_joining.py --wait turtlebot3c_bringup turtlebot3c_bringup.launch \
   "simulation:=$simulation" "model:=$model" "lds_model:=$lds_model" \
   "opencr_port:=$opencr_port" "lds_port:=$lds_port"

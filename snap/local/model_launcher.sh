@@ -15,5 +15,5 @@ shift 2
 
 model="$(snapctl get turtlebot3-model)"
 export TURTLEBOT3_MODEL="$model"
-# The master is the roscore app's: wait for it (bounded), and never start one (--wait).
-exec wait_for_master.sh roslaunch --wait "$package" "$launch_file" "model:=$model" "$@"
+# The master is the roscore app's: wait for it (bounded), and never start one (roslaunch_joining.py).
+exec wait_for_master.sh roslaunch_joining.py --wait "$package" "$launch_file" "model:=$model" "$@"

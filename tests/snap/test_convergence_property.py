@@ -92,13 +92,20 @@ def check_maps(maps):
     assert not empty, f"maps with nothing in them: {empty}"
 
 
+def settled(system, any_state=False):
+    states = {app: system.status("turtlebot3c", app)["state"] for app in ("mapping", "navigation")}
+    return states if any_state or all(state in ("active", "inactive", "failed") for state in states.values()) \
+        else None
+
+
 def converge(system, master):
     system.snapsim("start", *[f"turtlebot3c.{app}" for app in BOOT_APPS])
     simulation = system.config("turtlebot3c")["simulation"] in (True, "true")
+    # mapping and navigation, as the sequence left them: settled, running or stopped, never failed
+    states = wait_until(lambda: settled(system), CONVERGE_WITHIN,
+                        lambda: f"mapping or navigation never settled: {settled(system, any_state=True)}")
+    assert "failed" not in states.values(), f"{states}:\n{system.logs('turtlebot3c', '200')}"
     wait_for_working_robot(system, master, CONVERGE_WITHIN, simulation=simulation)
-    for app in ("mapping", "navigation"):  # started by the sequence: running, not failed or looping
-        state = system.status("turtlebot3c", app)["state"]
-        assert state in ("active", "inactive"), f"{app} is {state}:\n{system.logs('turtlebot3c', '200')}"
     wait_until(lambda: len(rosmaster_pids(system)) == 1, 30,
                lambda: f"{len(rosmaster_pids(system))} masters run")
 
