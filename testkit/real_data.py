@@ -43,6 +43,7 @@ class SlamRun(NamedTuple):
     trajectory: np.ndarray      # (N, 3) per scan, after loop closures
     odometry: np.ndarray        # (N, 3) the odometry the SLAM was given
     closures: list              # [(scan i, scan j, measured pose of j seen from i)]
+    rejected_closures: int      # accepted, then taken out again by the consistency check
     seconds: float              # CPU seconds in the SLAM
     scan_seconds: np.ndarray    # (N,) CPU seconds per scan
     peak_rss_mb: float
@@ -73,7 +74,8 @@ def run_slam(log, severity, seed, config=None):
     trajectory = np.array([pose[1:] for pose in slam.trajectory()])
     closures = [(keyframe_scan[old], keyframe_scan[new], measured) for old, new, measured, _ in slam.loop_closures]
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-    return SlamRun(trajectory, odometry, closures, float(scan_seconds.sum()), scan_seconds, peak)
+    return SlamRun(trajectory, odometry, closures, slam.rejected_loop_closures, float(scan_seconds.sum()),
+                   scan_seconds, peak)
 
 
 def score(log, trajectory, closures=()):
@@ -123,8 +125,14 @@ def reference_map(log, resolution=AMCL_MAP_RESOLUTION, max_range=AMCL_MAP_RANGE)
     ranges = np.where(np.isfinite(log.ranges), log.ranges, np.inf)
     hit = ranges < max_range
     reach = np.where(hit, ranges, max_range)
-    low = (log.reference[:, :2] - reach.max(axis=1)[:, None]).min(axis=0) - 2 * resolution
-    high = (log.reference[:, :2] + reach.max(axis=1)[:, None]).max(axis=0) + 2 * resolution
+    # The map spans what the scans hit (and where the robot went), not the empty reach of no-returns.
+    directions = log.reference[:, 2:3] + angles
+    ends_x = log.reference[:, 0:1] + reach * np.cos(directions)
+    ends_y = log.reference[:, 1:2] + reach * np.sin(directions)
+    low = np.array([min(ends_x[hit].min(), log.reference[:, 0].min()),
+                    min(ends_y[hit].min(), log.reference[:, 1].min())]) - 1.0
+    high = np.array([max(ends_x[hit].max(), log.reference[:, 0].max()),
+                     max(ends_y[hit].max(), log.reference[:, 1].max())]) + 1.0
     width, height = (np.ceil((high - low) / resolution).astype(int) + 1)
     log_odds = np.zeros(width * height)
     seen = np.zeros(width * height, dtype=bool)
@@ -137,6 +145,7 @@ def reference_map(log, resolution=AMCL_MAP_RESOLUTION, max_range=AMCL_MAP_RANGE)
         ray = np.repeat(np.arange(len(samples)), samples)
         fraction = (np.arange(ray.size) - np.repeat(np.cumsum(samples) - samples, samples)) / samples[ray]
         points = pose[:2] + (ends[ray] - pose[:2]) * fraction[:, None]
+        points = points[((points >= low) & (points < high)).all(axis=1)]
         free = np.setdiff1d(_cells(points, low, resolution, width), hits)
         log_odds[free] += AMCL_FREE_LOG_ODDS
         log_odds[hits] += AMCL_HIT_LOG_ODDS
