@@ -1,0 +1,46 @@
+"""AMCL on real laser data: a Radish log (a SICK LMS, 180 degrees, scans about 1 m apart) with the
+worst odometry error model, started 1 m / 0.5 rad off, on the map of the log's own scans. The
+parameters are the benchmark's one set for every log (testkit.real_data.AMCL_PARAMS)."""
+import numpy as np
+import pytest
+
+from testkit.real_data import AMCL_BOUND, converged_scan, load_log, reference_map, run_amcl
+
+
+@pytest.fixture(scope="module")
+def seattle():
+    log = load_log("seattle", 150)  # 150 scans, 120 m of a lab's corridors and rooms
+    return log, reference_map(log)
+
+
+def test_amcl_converges_from_1_m_and_half_a_radian_off_and_tracks_within_the_issue_targets(seattle):
+    log, occupancy_map = seattle
+    run = run_amcl(log, "severe", seed=1, occupancy_map=occupancy_map)
+    assert run.converged and run.converged_at <= 10
+    assert run.translation <= 0.05 and run.rotation <= 1.5   # issue #21: 0.05 m / 1.5 deg mean
+    assert run.held >= 0.9
+    assert run.relocalizations == 0
+
+
+def test_a_filter_started_at_the_truth_is_not_thrown_off_by_the_odometry(seattle):
+    log, occupancy_map = seattle
+    run = run_amcl(log.head(60), "severe", seed=2, occupancy_map=occupancy_map, offset=(0.0, 0.0))
+    assert run.converged_at == 0
+    assert run.translation <= 0.05 and run.translation_errors.max() < 0.5
+
+
+def test_convergence_is_the_first_scan_within_the_bound_that_most_later_scans_keep():
+    t, r = AMCL_BOUND
+    good, off = (t / 2, r / 2), (t * 3, r / 2)
+    errors = [off] * 5 + [good] * 20
+    assert converged_scan(*np.array(errors).T) == 5
+    # A scan or a few off later (the reference off, a slipping wheel) do not undo it ...
+    errors = [off] * 5 + [good] * 10 + [off] * 3 + [good] * 10
+    assert converged_scan(*np.array(errors).T) == 5
+    # ... losing the robot does: convergence counts from when it was found again.
+    errors = [off] * 5 + [good] * 10 + [off] * 8 + [good] * 12
+    assert converged_scan(*np.array(errors).T) == 23
+    # Heading counts as much as position; never within the bound, or not for long enough: None.
+    errors = [(t / 2, r * 2)] * 25
+    assert converged_scan(*np.array(errors).T) is None
+    assert converged_scan(*np.array([off] * 20 + [good] * 5).T) is None
