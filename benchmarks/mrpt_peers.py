@@ -42,6 +42,8 @@ from typing import NamedTuple, Optional
 
 import numpy as np
 
+from turtlebot3c_common.se2 import compose, relative
+
 REPO = Path(__file__).resolve().parent.parent
 HERE = Path(__file__).resolve().parent / "mrpt"
 CONVERTER_SOURCE = HERE / "scans_to_rawlog.cpp"
@@ -119,7 +121,7 @@ def write_rawlog(log, odometry, path):
         stream.write(f"{beams} {aperture!r} {sensor_yaw!r} {MAX_RANGE} {RANGE_STD} "
                      + " ".join(str(value) for value in ODOMETRY_NOISE) + "\n")
         for index, (stamp, ranges) in enumerate(zip(log.stamps, log.ranges)):
-            step = _relative(odometry[index - 1], odometry[index]) if index else (0.0, 0.0, 0.0)
+            step = relative(odometry[index - 1], odometry[index]) if index else (0.0, 0.0, 0.0)
             readings = np.where(np.isfinite(ranges), ranges, -1.0)
             stream.write(f"{1e9 + float(stamp):.6f} {step[0]!r} {step[1]!r} {step[2]!r} ")
             stream.write(" ".join(f"{value:.4f}" for value in readings))
@@ -230,9 +232,9 @@ def _filter_steps(odometry, settings):
     steps = np.zeros(len(odometry), dtype=bool)
     since_localized = since_inserted = (0.0, 0.0, 0.0)
     for index in range(len(odometry)):
-        step = _relative(odometry[index - 1], odometry[index]) if index else (0.0, 0.0, 0.0)
-        since_localized = _compose(since_localized, step)
-        since_inserted = _compose(since_inserted, step)
+        step = relative(odometry[index - 1], odometry[index]) if index else (0.0, 0.0, 0.0)
+        since_localized = compose(since_localized, step)
+        since_inserted = compose(since_inserted, step)
         insert = index == 0 or math.hypot(*since_inserted[:2]) > insert_xy or abs(since_inserted[2]) > insert_yaw
         localize = insert or math.hypot(*since_localized[:2]) > localize_xy or abs(since_localized[2]) > localize_yaw
         if localize:
@@ -253,23 +255,8 @@ def _fill_between_steps(path, steps, odometry):
             last_pose, last_index = tuple(next(poses)), index
             trajectory[index] = last_pose
         else:
-            trajectory[index] = _compose(last_pose, _relative(odometry[last_index], odometry[index]))
+            trajectory[index] = compose(last_pose, relative(odometry[last_index], odometry[index]))
     return trajectory
-
-
-def _compose(a, b):
-    cos, sin = math.cos(a[2]), math.sin(a[2])
-    return (a[0] + cos * b[0] - sin * b[1], a[1] + sin * b[0] + cos * b[1], _wrap(a[2] + b[2]))
-
-
-def _relative(a, b):
-    cos, sin = math.cos(a[2]), math.sin(a[2])
-    dx, dy = b[0] - a[0], b[1] - a[1]
-    return (cos * dx + sin * dy, -sin * dx + cos * dy, _wrap(b[2] - a[2]))
-
-
-def _wrap(angle):
-    return math.atan2(math.sin(angle), math.cos(angle))
 
 
 def main(names):
