@@ -105,6 +105,11 @@ AMCL_PARAMS = dict(
     # The odometry's noise, as for any robot (amcl's odom_alpha1..4): up to 0.3 rad per radian
     # turned, 10 % of the distance, heading drift per metre (the severe model's figures).
     odom_alpha1=0.2, odom_alpha2=0.005, odom_alpha3=0.02, odom_alpha4=0.01,
+    # Upstream amcl's default: no random particles. On these large maps, scans 1 m apart, the
+    # random particles of Augmented MCL (on in config/amcl.yaml, for the simulator's small worlds)
+    # take over from a cloud that a big turn with bad odometry left behind for a scan or two, and
+    # the filter jumps tens of metres (fhw, severe); without them the cloud catches up by itself.
+    recovery_alpha_slow=0.0, recovery_alpha_fast=0.0,
 )
 AMCL_START_OFFSET = (1.0, 0.5)  # m, rad off the first reference pose
 AMCL_INITIAL_STD = (0.75, 0.75, 0.5)  # m, m, rad: the initial pose's standard deviations (truth within ~1.3 sigma)
