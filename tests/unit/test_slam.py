@@ -56,6 +56,13 @@ def test_upside_down_mount_turns_beams_clockwise():
     assert rays.hits == pytest.approx(np.array([[1.0, 0.0], [0.0, -2.0]]), abs=1e-12)
 
 
+def test_a_zero_reading_is_no_measurement_even_when_the_scan_declares_no_range_min():
+    geometry = ScanGeometry(0.0, math.pi / 2, 4, 0.0, 10.0)
+    rays = scan_rays(geometry, [0.0, 2.0, 10.0, np.nan], usable_range=8.0)
+    assert rays.hits == pytest.approx(np.array([[0.0, 2.0]]), abs=1e-12)
+    assert rays.free_ends == pytest.approx(np.array([[-8.0, 0.0]]), abs=1e-12)
+
+
 def test_scan_with_wrong_number_of_ranges_is_rejected():
     geometry = ScanGeometry(0.0, 0.1, 10, 0.1, 10.0)
     with pytest.raises(ValueError, match="3 ranges, its geometry 10"):

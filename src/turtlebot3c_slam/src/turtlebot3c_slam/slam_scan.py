@@ -4,7 +4,7 @@ Each range is classified as a LaserScan consumer should read it:
 - a *hit*: finite, at least range_min and below range_max (and below the usable range);
 - *no return*: +inf, or at/above range_max -- nothing was in reach, so the ray is free
   space up to the usable range but ends at no obstacle;
-- *invalid*: NaN, -inf, or below range_min (many drivers report 0 for "no measurement");
+- *invalid*: NaN, -inf, 0 or below range_min (many drivers report 0 for "no measurement");
   it tells nothing and is dropped.
 Hits beyond `usable_range` are cut there and count as free rays, as gmapping's maxUrange
 does: far returns of long-range LIDARs are too inaccurate in angle to draw walls with.
@@ -75,7 +75,8 @@ def scan_rays(geometry, ranges, usable_range, motion=None):
         raise ValueError(f"scan has {ranges.size} ranges, its geometry {geometry.count}")
     limit = min(usable_range, geometry.range_max)
     with np.errstate(invalid="ignore"):
-        valid = (ranges >= geometry.range_min) & ~np.isnan(ranges)
+        # 0 is "no measurement" even from a scan that declares no range_min: never a wall at the sensor.
+        valid = (ranges >= geometry.range_min) & (ranges > 0.0) & ~np.isnan(ranges)
         hit = valid & (ranges < geometry.range_max) & (ranges <= usable_range)
     free = valid & ~hit
     hit_points = geometry.origin + geometry.directions[hit] * ranges[hit, None]
