@@ -68,9 +68,12 @@ def spin_and_map(ros_master, lds_model):
     scans = probe.timed_messages("/scan", scans_from)
 
     def settled_map():
-        # SLAM publishes a changed map within 2.5 s (map_update_interval 2 s): 3 s of quiet means the last one.
-        last = probe.timed_messages("/map")[-1]
-        return last["msg"] if time.time() - max(last["t"], stopped) > 3.0 else None
+        # SLAM publishes its map every map_update_interval (2 s), changed or not: a map received over
+        # 3 s after the stop that is the same as the one before it is the last one.
+        entries = probe.timed_messages("/map")
+        if len(entries) < 2 or entries[-1]["t"] - stopped < 3.0:
+            return None
+        return entries[-1]["msg"] if entries[-1]["msg"]["data"] == entries[-2]["msg"]["data"] else None
     occupancy_map = grid_map(wait_until(settled_map, 60, "the map to settle after the spin"))
     return occupancy_map, map_in_world, scans, ros_master.logs()
 
