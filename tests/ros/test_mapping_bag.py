@@ -8,11 +8,11 @@ from rosbags.rosbag1 import Writer
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from testkit import ros_harness
+from turtlebot3c_common.bag_inputs import read_trajectory
 from turtlebot3c_maps.map_files import load_map
 from turtlebot3c_sim.evaluation import ROUTES, absolute_trajectory_error, cell_agreement, drive_route
 from turtlebot3c_sim.simulation import NoiseConfig, Simulation
 from turtlebot3c_sim.world import load_world
-from turtlebot3c_slam.bag_replay import read_trajectory
 
 SCAN, ODOM, TF = "sensor_msgs/msg/LaserScan", "nav_msgs/msg/Odometry", "tf2_msgs/msg/TFMessage"
 

@@ -14,9 +14,9 @@ from rosbags.rosbag1 import Writer
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from testkit.real_data import AMCL_PARAMS, load_log, reference_map
+from turtlebot3c_common.bag_inputs import read_trajectory
 from turtlebot3c_common.se2 import compose, inverse, wrap_angle
 from turtlebot3c_maps.map_files import save_map
-from turtlebot3c_navigation.amcl_replay import read_trajectory
 from turtlebot3c_sim.odometry_error import SEVERITIES, noisy_odometry
 
 REPO = Path(__file__).resolve().parents[2]

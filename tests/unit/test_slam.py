@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from turtlebot3c_common.se2 import compose, inverse, relative, transform_points
+from turtlebot3c_common.se2 import compose, interpolate_pose, inverse, relative, transform_points
 from turtlebot3c_sim.evaluation import (
     ROUTES,
     absolute_trajectory_error,
@@ -18,7 +18,7 @@ from turtlebot3c_slam.occupancy_grid import LogOddsGrid, trace_scan
 from turtlebot3c_slam.pose_graph import PoseGraph
 from turtlebot3c_slam.scan_matcher import GridMatcher, likelihood_field
 from turtlebot3c_slam.slam import Slam, SlamConfig, check_slam_method
-from turtlebot3c_slam.slam_messages import interpolate_pose, mount_from_transform
+from turtlebot3c_slam.slam_messages import mount_from_transform
 from turtlebot3c_slam.slam_scan import ScanGeometry, scan_rays
 
 # --- plane geometry and scans ----------------------------------------------------------------

@@ -54,3 +54,10 @@ def yaw_to_quaternion(yaw):
 def quaternion_to_yaw(x, y, z, w):
     """Yaw of a quaternion (the rotation about z; roll and pitch ignored)."""
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def interpolate_pose(before, after, fraction):
+    """Linear in position, shortest way in yaw (what tf does for planar motion)."""
+    return (before[0] + (after[0] - before[0]) * fraction,
+            before[1] + (after[1] - before[1]) * fraction,
+            wrap_angle(before[2] + wrap_angle(after[2] - before[2]) * fraction))

@@ -7,7 +7,6 @@ are built by turtlebot3c_maps.map_messages, as map_server's are.
 import math
 
 from turtlebot3c_common.message_fields import pose_from_msg
-from turtlebot3c_common.se2 import wrap_angle
 
 from .slam_scan import ScanGeometry
 
@@ -29,17 +28,6 @@ def pose_from_odometry(odometry):
     return pose_from_msg(odometry.pose.pose)
 
 
-def stamp_seconds(header):
-    stamp = header.stamp
-    seconds = getattr(stamp, "secs", None)
-    if seconds is None:
-        seconds = stamp.sec
-    nanoseconds = getattr(stamp, "nsecs", None)
-    if nanoseconds is None:
-        nanoseconds = stamp.nanosec
-    return seconds + nanoseconds * 1e-9
-
-
 class ScanGeometries:
     """ScanGeometry per distinct scan layout and mount (cached: building one costs a few trig arrays)."""
 
@@ -58,11 +46,4 @@ class ScanGeometries:
                                     scan.range_max, (x, y, yaw), upside_down)
             self._cache[key] = geometry
         return geometry
-
-
-def interpolate_pose(before, after, fraction):
-    """Linear in position, shortest way in yaw (what tf does for planar motion)."""
-    return (before[0] + (after[0] - before[0]) * fraction,
-            before[1] + (after[1] - before[1]) * fraction,
-            wrap_angle(before[2] + wrap_angle(after[2] - before[2]) * fraction))
 
