@@ -67,6 +67,7 @@ class Rejoiner:
         self.on_rejoined = on_rejoined
         self.watch = MasterWatch()
         self.parameters = KeptParameters()
+        self.parameters_owed = False  # the new master still lacks some of the node's parameters
         self.looks = 0
 
     def run(self):
@@ -74,17 +75,29 @@ class Rejoiner:
             identity = self.master.identity()
             if self.watch.observe(identity):
                 self.rejoin()
+            elif identity is not None and self.parameters_owed:
+                self.restore_parameters()
             elif identity is not None and self.looks % PARAMETERS_EVERY == 0:
                 self.parameters.remember(self.node_name, self.master.call("getParam", self.node_name))
             self.looks += 1
             time.sleep(self.period)  # wall time: a simulated clock stops with the master's nodes
 
+    def restore_parameters(self):
+        """Set the node's kept parameters the master lacks. A call a loaded master did not answer
+        in time leaves them owed, for the next look (the copy is not read back from the master
+        meanwhile: it would lack them)."""
+        present = self.master.call("getParamNames")
+        if present is None:
+            self.parameters_owed = True
+            return
+        self.parameters_owed = False
+        for name, value in self.parameters.missing(present).items():
+            if self.master.call("setParam", name, value) is None:
+                self.parameters_owed = True
+
     def rejoin(self):
         rospy.logwarn("%s: the ROS master was restarted: registering with the new one", self.node_name)
-        present = self.master.call("getParamNames")
-        if present is not None:
-            for name, value in self.parameters.missing(present).items():
-                self.master.call("setParam", name, value)
+        self.restore_parameters()
         manager = registrar()
         if manager is None:  # never registered: rospy's own start-up registration is still trying
             return
