@@ -6,6 +6,10 @@ the reference:
 - consistency(trajectory): lay every scan over the next few at the trajectory's relative poses
   and take the median point-to-line distance between them (m). A trajectory that agrees with
   what the laser saw scores low; it needs no reference at all.
+- false_by_scans(closures): a loop closure judged by the two scans it joins rather than by the
+  reference alone: ICP of one against the other, from the reference's relative pose, says where
+  the scans put them; a claim farther from that than the tolerances is false (where the two
+  scans overlap too little for ICP, the reference decides).
 - floor(): the trajectory that agrees best with the scans (point-to-line ICP between every pair
   of scans near each other, each match weighted by how well it pins the pose -- a corridor
   leaves the along-corridor direction loose --, optimised as a pose graph from the reference)
@@ -18,7 +22,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from turtlebot3c_common.se2 import relative, transform_points, wrap_angle
-from turtlebot3c_sim.evaluation import relative_pose_errors
+from turtlebot3c_sim.evaluation import contradicts, relative_pose_errors
 from turtlebot3c_slam.pose_graph import PoseGraph
 
 MAX_RANGE = 20.0        # m: farther echoes are too coarse in angle to fit lines to
@@ -145,3 +149,13 @@ def _thinned(log):
             keep.append(index)
             last = distance
     return log._replace(stamps=log.stamps[keep], ranges=log.ranges[keep], reference=log.reference[keep])
+
+
+def false_by_scans(scans, closures, reference):
+    """How many closures [(scan i, scan j, claimed pose of j seen from i)] the two scans contradict."""
+    false = 0
+    for i, j, claimed in closures:
+        expected = relative(tuple(reference[i]), tuple(reference[j]))
+        matched = match(scans, i, j, expected)
+        false += contradicts(tuple(claimed), matched[0] if matched is not None else expected)
+    return false

@@ -240,8 +240,11 @@ def aligned_trajectory_error(estimated, reference):
 def false_relations(pairs, reference, tolerance_xy=0.2, tolerance_theta=0.035):
     """How many of `pairs` [(i, j, (x, y, yaw))] -- a claimed pose of scan j seen from scan i, such
     as a loop closure -- contradict the reference by more than the tolerances (m, rad: 2 degrees)."""
-    false = 0
-    for i, j, claimed in pairs:
-        error = relative(relative(tuple(reference[i]), tuple(reference[j])), tuple(claimed))
-        false += math.hypot(error[0], error[1]) > tolerance_xy or abs(error[2]) > tolerance_theta
-    return false
+    return sum(contradicts(tuple(claimed), relative(tuple(reference[i]), tuple(reference[j])), tolerance_xy,
+                           tolerance_theta) for i, j, claimed in pairs)
+
+
+def contradicts(claimed, expected, tolerance_xy=0.2, tolerance_theta=0.035):
+    """Whether a claimed relative pose misses the expected one by more than the tolerances (m, rad)."""
+    error = relative(expected, claimed)
+    return math.hypot(error[0], error[1]) > tolerance_xy or abs(error[2]) > tolerance_theta

@@ -73,6 +73,7 @@ class GridMatcher:
         self.low = np.asarray(low, dtype=np.int64) - self.pad  # lattice (i, j) of base[0, 0]
         self.pyramid = [base]
         self._penalty = None
+        self._flat = None
         for level in range(1, self.levels + 1):
             half = 1 << (level - 1)
             previous = self.pyramid[-1]
@@ -94,14 +95,27 @@ class GridMatcher:
         grid = self.pyramid[level]
         height, width = grid.shape
         angle, dx, dy = candidates[:, 0], candidates[:, 1], candidates[:, 2]
+        if self._flat is not None:  # every candidate stays inside the grid: one flat lookup
+            return grid.ravel()[self._flat[angle] + (dy * width + dx)[:, None]].mean(axis=1)
         c = np.clip(cols[angle] + dx[:, None], 0, width - 1)
         r = np.clip(rows[angle] + dy[:, None], 0, height - 1)
         return grid[r, c].mean(axis=1)
+
+    def _flat_indices(self, cols, rows, reach):
+        """Flat indices of the points per angle when shifting them by -reach..reach (+ a block's
+        stride) cells keeps all inside the grid, so lookups need no clipping; None otherwise."""
+        height, width = self.pyramid[0].shape
+        stride = 1 << self.levels
+        if cols.min() - reach < 0 or rows.min() - reach < 0 or cols.max() + reach + stride >= width or \
+                rows.max() + reach + stride >= height:
+            return None
+        return rows * width + cols
 
     def score(self, points, pose):
         """Mean field value of robot-frame points at pose (cell lookup, no interpolation)."""
         world = _transform(points, pose)
         cols, rows = self._cell_indices(world[None])
+        self._flat = None
         return float(self._scores(0, cols, rows, np.zeros((1, 3), dtype=np.int64))[0])
 
     def _interpolate(self, world):
@@ -177,6 +191,7 @@ class GridMatcher:
                           prior[1] + sin * points[:, 0] + cos * points[:, 1]), axis=-1)
         cols, rows = self._cell_indices(world)
         reach = int(math.ceil(window_xy / self.resolution))
+        self._flat = self._flat_indices(cols, rows, reach)
         self._penalty = None
         if prior_sigmas is not None:
             self._penalty = (self.resolution ** 2 / (2.0 * prior_sigmas[0] ** 2),
