@@ -28,8 +28,14 @@ How:
   filter did not run (no motion since the last) gets that path's last pose moved by odometry,
   as rbpf-slam itself predicts it.
 
+- Runs are kept in build/mrpt-peer-runs/, keyed by everything that decides them (the scans, the
+  odometry, the seed, the .ini files, this module, the converter's source and the MRPT
+  programs): a peer is deterministic given those, and rbpf-slam takes hours over all the logs,
+  so the benchmark reruns only what changed. PeerRun.cached says when a run was reused.
+
 Runnable alone for a quick check: .venv/bin/python3 benchmarks/mrpt_peers.py [log ...]
 """
+import hashlib
 import math
 import os
 import shutil
@@ -50,6 +56,7 @@ CONVERTER_SOURCE = HERE / "scans_to_rawlog.cpp"
 CONVERTER = REPO / "build" / "mrpt-converter" / "scans_to_rawlog"
 RBPF_CONFIG = HERE / "rbpf-slam.ini"
 ICP_CONFIG = HERE / "icp-slam.ini"
+RUNS = REPO / "build" / "mrpt-peer-runs"
 MRPT_INCLUDE = Path("/usr/include/mrpt")
 MRPT_LIBRARIES = ("mrpt-obs", "mrpt-poses", "mrpt-serialization", "mrpt-io", "mrpt-core",
                   "mrpt-system", "mrpt-math")
@@ -73,6 +80,7 @@ class PeerRun(NamedTuple):
     seconds: float            # CPU seconds (user + sys) of the peer's process
     peak_rss_mb: float        # the peer process's peak resident memory
     wall_seconds: float
+    cached: bool = False      # reused from an earlier run with the very same inputs
 
 
 def available() -> Optional[str]:
@@ -132,8 +140,39 @@ def write_rawlog(log, odometry, path):
     text.unlink()
 
 
+def _kept(name, log, odometry, seed, run):
+    """run() unless a run with the same inputs is kept in RUNS; kept afterwards either way."""
+    digest = hashlib.sha256()
+    for part in (log.stamps, log.ranges, np.asarray(odometry, dtype=np.float64)):
+        digest.update(np.ascontiguousarray(part).tobytes())
+    for path in (RBPF_CONFIG, ICP_CONFIG, Path(__file__), CONVERTER_SOURCE, Path(shutil.which(name))):
+        digest.update(path.read_bytes())
+    digest.update(f"{log.angle_min!r} {log.angle_increment!r} {seed}".encode())
+    path = RUNS / f"{name}-{log.name}-{digest.hexdigest()[:20]}.npz"
+    if path.exists():
+        with np.load(path) as kept:
+            return PeerRun(name, kept["trajectory"], float(kept["seconds"]), float(kept["peak_rss_mb"]),
+                           float(kept["wall_seconds"]), cached=True)
+    result = run()
+    RUNS.mkdir(parents=True, exist_ok=True)
+    partial = path.with_suffix(".partial.npz")
+    np.savez(partial, trajectory=result.trajectory, seconds=result.seconds, peak_rss_mb=result.peak_rss_mb,
+             wall_seconds=result.wall_seconds)
+    partial.replace(path)
+    return result
+
+
 def run_rbpf_slam(log, odometry, seed, workdir) -> PeerRun:
     """rbpf-slam over every scan of `log` with `odometry` (N, 3), seeded with `seed`."""
+    return _kept("rbpf-slam", log, odometry, seed, lambda: _run_rbpf_slam(log, odometry, seed, workdir))
+
+
+def run_icp_slam(log, odometry, workdir) -> PeerRun:
+    """icp-slam over every scan of `log` with `odometry` (N, 3)."""
+    return _kept("icp-slam", log, odometry, None, lambda: _run_icp_slam(log, odometry, workdir))
+
+
+def _run_rbpf_slam(log, odometry, seed, workdir):
     workdir = Path(workdir)
     workdir.mkdir(parents=True, exist_ok=True)
     rawlog = workdir / "scans.rawlog"
@@ -150,8 +189,7 @@ def run_rbpf_slam(log, odometry, seed, workdir) -> PeerRun:
     return PeerRun("rbpf-slam", trajectory, seconds, peak, wall)
 
 
-def run_icp_slam(log, odometry, workdir) -> PeerRun:
-    """icp-slam over every scan of `log` with `odometry` (N, 3)."""
+def _run_icp_slam(log, odometry, workdir):
     workdir = Path(workdir)
     workdir.mkdir(parents=True, exist_ok=True)
     rawlog = workdir / "scans.rawlog"
