@@ -36,6 +36,7 @@ ICP_ITERATIONS = 30
 ICP_HUBER = 0.03        # m
 ICP_SIGMA = 0.01        # m, a SICK's range noise: scales each match's information
 ICP_MIN_PAIRS = 50
+REFERENCE_INFORMATION = np.diag([1.0, 1.0, 100.0])  # 1 m, 0.1 rad: weak next to any ICP match
 
 
 class ScanSet:
@@ -120,6 +121,8 @@ def most_consistent_trajectory(scans, reference):
     graph = PoseGraph(huber_delta=3.0)
     for pose in reference:
         graph.add_node(pose)
+    for i in range(1, len(reference)):  # holds together stretches the scans leave unmatched
+        graph.add_edge(i - 1, i, relative(tuple(reference[i - 1]), tuple(reference[i])), REFERENCE_INFORMATION)
     for i in range(len(reference)):
         gaps = np.hypot(reference[:, 0] - reference[i, 0], reference[:, 1] - reference[i, 1])
         for j in np.flatnonzero(gaps < FLOOR_RADIUS):

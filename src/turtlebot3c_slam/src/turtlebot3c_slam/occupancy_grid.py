@@ -60,11 +60,14 @@ def hit_cells(points, resolution, cell_shift=0.0):
     return _cells_of_keys(keys), sums, np.bincount(inverse, minlength=len(keys)).astype(np.float64)
 
 
-def trace_scan(rays, pose, resolution, cell_shift=0.0):
+def trace_scan(rays, pose, resolution, cell_shift=0.0, walls=None):
     """The CellUpdate of a scan (ScanRays in the robot frame) taken at `pose` in the map frame.
 
     Rays are sampled every half cell, so no crossed cell is skipped; cells holding an
-    endpoint of a hit are hits, never free.
+    endpoint of a hit are hits, never free. A ray that ends at no hit (no return, or a hit
+    beyond the usable range) stops before the first cell `walls` (cells (N, 2) -> bool, e.g.
+    LogOddsGrid.occupied) calls a wall: glass, a black wall or a sensor that missed its echo
+    say nothing about what lies behind a wall that other scans saw.
     """
     origin = transform_points(pose, rays.origin)[0]
     hits = transform_points(pose, rays.hits)
@@ -79,8 +82,21 @@ def trace_scan(rays, pose, resolution, cell_shift=0.0):
     starts = np.cumsum(samples) - samples
     fraction = (np.arange(ray_index.size) - np.repeat(starts, samples)) / np.repeat(samples, samples)
     points = origin + (ends[ray_index] - origin) * fraction[:, None]
-    free_cells = _crossed_cells(np.floor(points / resolution + cell_shift).astype(np.int64), hit_cells_)
+    crossed = np.floor(points / resolution + cell_shift).astype(np.int64)
+    if walls is not None and len(rays.free_ends):
+        crossed = crossed[_before_walls(crossed, ray_index >= len(hits), starts, ray_index, walls)]
+    free_cells = _crossed_cells(crossed, hit_cells_) if len(crossed) else np.empty((0, 2), np.int64)
     return CellUpdate(free_cells, hit_cells_, hit_sums, hit_counts)
+
+
+def _before_walls(cells, checked, starts, ray_index, walls):
+    """Which samples (cells along rays, each ray's from its origin out) lie before the first
+    sample of their ray that is a wall; only `checked` samples can be walls."""
+    wall = np.zeros(len(cells), dtype=bool)
+    wall[checked] = walls(cells[checked])
+    walls_so_far = np.cumsum(wall)
+    walls_before_ray = (walls_so_far - wall)[starts]
+    return walls_so_far - walls_before_ray[ray_index] == 0
 
 
 def _crossed_cells(cells, hits):
@@ -148,7 +164,20 @@ class LogOddsGrid:
 
     def add_scan(self, rays, pose):
         """Mark a scan (ScanRays in the robot frame) taken at `pose` in the map frame."""
-        self.apply(trace_scan(rays, pose, self.resolution, self.cell_shift))
+        self.apply(self.trace(rays, pose))
+
+    def trace(self, rays, pose):
+        """The scan's CellUpdate on this grid: rays without a hit stop at the walls it holds."""
+        return trace_scan(rays, pose, self.resolution, self.cell_shift, walls=self.occupied)
+
+    def occupied(self, cells):
+        """Whether each lattice cell (N, 2) holds more hits than misses (False outside the array)."""
+        height, width = self.log_odds.shape
+        cols, rows = cells[:, 0] - self.offset[0], cells[:, 1] - self.offset[1]
+        inside = (cols >= 0) & (cols < width) & (rows >= 0) & (rows < height)
+        result = np.zeros(len(cells), dtype=bool)
+        result[inside] = self.log_odds[rows[inside], cols[inside]] > 0.0
+        return result
 
     def apply(self, update, sign=1):
         """Add (sign 1) or take back (sign -1) a scan's CellUpdate."""

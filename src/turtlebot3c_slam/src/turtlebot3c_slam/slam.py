@@ -37,7 +37,7 @@ import numpy as np
 
 from turtlebot3c_common.se2 import compose, distance, inverse, relative, transform_points, wrap_angle
 
-from .occupancy_grid import LogOddsGrid, hit_cells, trace_scan
+from .occupancy_grid import LogOddsGrid, hit_cells
 from .pose_graph import PoseGraph
 from .scan_matcher import GridMatcher, likelihood_field
 from .slam_scan import scan_rays, voxel_filter
@@ -320,7 +320,7 @@ class Slam:
             previous = tuple(self.graph.poses[index - 1])
             self.graph.add_edge(index - 1, index, relative(previous, self.pose), self._information(
                 self.config.odometry_sigma_xy, self.config.odometry_sigma_theta))
-        update = trace_scan(rays, self.pose, self.config.match_resolution)
+        update = self.local_grid.trace(rays, self.pose)
         self.local_grid.apply(update)
         self.local_updates.append((index, update))
         if len(self.local_updates) > self.config.local_map_keyframes:
@@ -340,8 +340,7 @@ class Slam:
         self.local_grid.clear()
         rebuilt = collections.deque()
         for index, _ in self.local_updates:
-            update = trace_scan(self.keyframes[index].rays, tuple(self.graph.poses[index]),
-                                self.config.match_resolution)
+            update = self.local_grid.trace(self.keyframes[index].rays, tuple(self.graph.poses[index]))
             self.local_grid.apply(update)
             rebuilt.append((index, update))
         self.local_updates = rebuilt
