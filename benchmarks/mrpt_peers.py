@@ -38,6 +38,7 @@ Runnable alone for a quick check: .venv/bin/python3 benchmarks/mrpt_peers.py [lo
 import hashlib
 import math
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -72,6 +73,9 @@ ODOMETRY_NOISE = (0.1,   # a1, m per m: srr
 RANGE_STD = 0.01         # m, a SICK LMS's range noise
 MAX_RANGE = 30.0         # m: farther readings are dropped as no-return (aces, icp-slam: 30 m beat 80, 15, 8 m)
 PEER_TIMEOUT = 3600.0    # s of wall time for one peer run
+# rbpf-slam's 30 particle maps of a convention centre (acapulco) grew past 23 GB here and the
+# kernel killed it (and could have killed anything else); a peer gets this much, then fails.
+PEER_MEMORY = 6 * 1024 ** 3  # bytes of address space
 
 
 class PeerRun(NamedTuple):
@@ -209,7 +213,7 @@ def _run(command, output):
     with open(output, "w") as stream:
         process = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=stream,
                                    stderr=subprocess.STDOUT, cwd=output.parent,
-                                   env={**os.environ, "DISPLAY": ""})
+                                   env={**os.environ, "DISPLAY": ""}, preexec_fn=_limit_memory)
         deadline = started + PEER_TIMEOUT
         while True:
             pid, status, usage = os.wait4(process.pid, os.WNOHANG)
@@ -224,9 +228,14 @@ def _run(command, output):
     wall = time.monotonic() - started
     if process.returncode != 0:
         tail = output.read_text(errors="replace").strip().splitlines()[-3:]
-        raise RuntimeError(f"{command[0]} exited with {process.returncode} after {wall:.0f} s: "
+        raise RuntimeError(f"{command[0]} exited with {process.returncode} after {wall:.0f} s, peak RSS "
+                           f"{usage.ru_maxrss / 1024:.0f} MB of {PEER_MEMORY / 1024 ** 3:.0f} GB allowed: "
                            + " | ".join(tail))
     return usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024.0, wall
+
+
+def _limit_memory():
+    resource.setrlimit(resource.RLIMIT_AS, (PEER_MEMORY, PEER_MEMORY))
 
 
 def _config(template, path, values):
