@@ -31,7 +31,8 @@ How:
 - Runs are kept in build/mrpt-peer-runs/, keyed by everything that decides them (the scans, the
   odometry, the seed, the .ini files, this module, the converter's source and the MRPT
   programs): a peer is deterministic given those, and rbpf-slam takes hours over all the logs,
-  so the benchmark reruns only what changed. PeerRun.cached says when a run was reused.
+  so the benchmark reruns only what changed. PeerRun.cached says when a run was reused; a run
+  that failed is kept as its message.
 
 Runnable alone for a quick check: .venv/bin/python3 benchmarks/mrpt_peers.py [log ...]
 """
@@ -153,12 +154,19 @@ def _kept(name, log, odometry, seed, run):
         digest.update(path.read_bytes())
     digest.update(f"{log.angle_min!r} {log.angle_increment!r} {seed}".encode())
     path = RUNS / f"{name}-{log.name}-{digest.hexdigest()[:20]}.npz"
+    failure = path.with_suffix(".failed")
+    if failure.exists():
+        raise RuntimeError(failure.read_text().strip() + " (kept)")
     if path.exists():
         with np.load(path) as kept:
             return PeerRun(name, kept["trajectory"], float(kept["seconds"]), float(kept["peak_rss_mb"]),
                            float(kept["wall_seconds"]), cached=True)
-    result = run()
     RUNS.mkdir(parents=True, exist_ok=True)
+    try:
+        result = run()
+    except RuntimeError as error:  # a crash or running out of memory is as repeatable as a result
+        failure.write_text(f"{error}\n")
+        raise
     partial = path.with_suffix(".partial.npz")
     np.savez(partial, trajectory=result.trajectory, seconds=result.seconds, peak_rss_mb=result.peak_rss_mb,
              wall_seconds=result.wall_seconds)
