@@ -155,6 +155,32 @@ def test_slam_keeps_a_wall_that_later_scans_see_no_echo_from():
     assert cell_state(occupancy, 2.0, 0.0) == -1
 
 
+def room_ranges(pose, angles, half_width=2.0):
+    """Ranges from `pose` to the walls of a square room centred on the origin."""
+    directions = pose[2] + angles
+    dx, dy = np.cos(directions), np.sin(directions)
+    with np.errstate(divide="ignore"):
+        to_x = np.where(dx > 0, half_width - pose[0], -half_width - pose[0]) / dx
+        to_y = np.where(dy > 0, half_width - pose[1], -half_width - pose[1]) / dy
+    return np.minimum(np.abs(to_x), np.abs(to_y))
+
+
+def test_a_scan_that_matches_poorly_never_becomes_a_keyframe_unless_poor_ones_go_on():
+    """Its pose is odometry's guess; drawn into the local map it would mislead the next scans."""
+    geometry = ScanGeometry(-math.pi, 2 * math.pi / 360, 360, 0.1, 10.0)
+    angles = -math.pi + np.arange(360) * 2 * math.pi / 360
+    slam = Slam()
+    for step in range(3):
+        pose = (0.3 * step - 0.6, 0.0, 0.0)
+        slam.add_scan(float(step), room_ranges(pose, angles), geometry, pose)
+    keyframes = len(slam.keyframes)
+    garbage = np.random.RandomState(2).uniform(0.3, 6.0, 360)  # what a dirty or blinded LIDAR gives
+    slam.add_scan(3.0, garbage, geometry, (0.3, 0.0, 0.0))
+    assert slam.poor_matches == 1 and len(slam.keyframes) == keyframes
+    slam.add_scan(4.0, garbage, geometry, (0.6, 0.0, 0.0))
+    assert slam.poor_matches == 2 and len(slam.keyframes) == keyframes + 1  # lost for good: map on
+
+
 def cell_state(occupancy, x, y):
     """The map's value (100 / 0 / -1) at a point; -1 outside."""
     ox, oy = occupancy.origin[:2]

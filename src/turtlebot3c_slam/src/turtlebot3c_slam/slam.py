@@ -16,7 +16,9 @@ How it works:
   turn and time since the last good match (a real robot's wheels slip, scans may come a
   metre apart). The correlative search (scan_matcher, branch and bound) finds the cell and
   angle step; a Gauss-Newton step on the interpolated field refines it below a cell. A poor
-  match (score below `match_min_score`) keeps odometry, and the next scan searches wider.
+  match (score below `match_min_score`) keeps odometry, and the next scan searches wider; it
+  does not become a keyframe either (unless poor matches go on), so a guessed pose never
+  draws the local map that the next scans match against.
 - *Keyframes*: after `keyframe_distance` metres or `keyframe_angle` radians, the scan becomes
   a node of the pose graph, chained to the previous keyframe by the tracked relative pose.
 - *Loop closure*: a new keyframe near an old part of the trajectory (more than
@@ -196,6 +198,8 @@ class Keyframe:
 
 
 class Slam:
+    POOR_STREAK_LIMIT = 2
+
     def __init__(self, config=None):
         self.config = config or SlamConfig()
         self.graph = PoseGraph()
@@ -215,6 +219,7 @@ class Slam:
         self._last_loop_attempt = -(10 ** 9)
         self.loop_closures = []    # (old keyframe, new keyframe, new seen from old, score)
         self.poor_matches = 0
+        self._poor_streak = 0      # poorly matched scans in a row
         self._unmatched = UnmatchedMotion()
         self._pending_closures = []
         self.rejected_loop_closures = 0
@@ -254,8 +259,8 @@ class Slam:
         self.odom = odom_pose
         last = len(self.keyframes) - 1
         moved = relative(self.graph.poses[last], self.pose)
-        if math.hypot(moved[0], moved[1]) >= self.config.keyframe_distance or \
-                abs(moved[2]) >= self.config.keyframe_angle:
+        if (math.hypot(moved[0], moved[1]) >= self.config.keyframe_distance or
+                abs(moved[2]) >= self.config.keyframe_angle) and self._may_add_keyframe():
             self._add_keyframe(stamp, rays, points)
             last = len(self.keyframes) - 1
         self._scans.append((stamp, last, relative(tuple(self.graph.poses[last]), self.pose)))
@@ -282,9 +287,17 @@ class Slam:
         result = matcher.match(points, predicted, window_xy, window_theta, prior_sigmas=(window_xy, window_theta))
         if result.score < self.config.match_min_score:
             self.poor_matches += 1
+            self._poor_streak += 1
             return predicted
+        self._poor_streak = 0
         self._unmatched = UnmatchedMotion(self._unmatched.stamp)
         return matcher.refine(points, result.pose).pose
+
+    def _may_add_keyframe(self):
+        """Not from a scan that matched poorly: its pose is odometry's guess, and drawn into the
+        local map it would mislead the next scans' matching (a turn taken 25 degrees wrong on a
+        real log). After POOR_STREAK_LIMIT poor scans in a row, the map must follow anyway."""
+        return self._poor_streak == 0 or self._poor_streak >= self.POOR_STREAK_LIMIT
 
     def _tracking_window(self):
         """Search half-widths (m, rad): 3 sigma of how far odometry may have drifted since the last good match."""
