@@ -123,3 +123,34 @@ def test_a_nodes_registrations_are_read_from_the_masters_system_state():
         subscriptions=[("/scan", "sensor_msgs/LaserScan"), ("/tf_static", "*")],  # nobody publishes it yet
         services=[("/recorder/get_loggers", "rosrpc://host:1")])
     assert node_registrations("/absent", "http://host:3/", state, types, {}.get) == NodeRegistrations("http://host:3/")
+
+
+class StubMaster:
+    """A master's getParamNames and setParam, answering only once `answers` is set."""
+
+    def __init__(self):
+        self.params = {}
+        self.answers = False
+
+    def call(self, method, *args):
+        if not self.answers:
+            return None
+        if method == "getParamNames":
+            return list(self.params)
+        if method == "setParam":
+            self.params[args[0]] = args[1]
+            return 0
+        return None
+
+
+def test_parameters_a_new_master_did_not_take_stay_owed_until_a_later_look_sets_them():
+    from turtlebot3c_common.rospy_rejoin import Rejoiner  # rospy: not for the pure-Python unit tests
+
+    master = StubMaster()
+    rejoiner = Rejoiner(master, "/amcl", period=0.5)
+    rejoiner.parameters.remember("/amcl", {"min_particles": 500})
+    rejoiner.restore_parameters()  # a loaded new master that does not answer in time
+    assert rejoiner.parameters_owed and master.params == {}
+    master.answers = True
+    rejoiner.restore_parameters()
+    assert not rejoiner.parameters_owed and master.params == {"/amcl/min_particles": 500}
