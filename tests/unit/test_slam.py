@@ -109,17 +109,11 @@ def test_scan_marks_hit_cells_occupied_and_cells_before_them_free():
     grid = LogOddsGrid(0.05)
     grid.apply(trace_scan(wall_scan(), (0.0, 0.0, 0.0), 0.05))
     occupancy = grid.to_occupancy_map()
-    ox, oy = occupancy.origin[:2]
-
-    def cell(x, y):
-        row, col = int(math.floor((y - oy) / 0.05)), int(math.floor((x - ox) / 0.05))
-        inside = 0 <= row < occupancy.height and 0 <= col < occupancy.width
-        return occupancy.data[row, col] if inside else -1
-    assert cell(1.01, 0.0) == 100
-    assert cell(0.5, 0.0) == 0
-    assert cell(0.5, 0.2) == 0
-    assert cell(1.2, 0.0) == -1  # behind the wall: never seen
-    assert cell(-0.5, 0.0) == -1  # outside the field of view
+    assert cell_state(occupancy, 1.01, 0.0) == 100
+    assert cell_state(occupancy, 0.5, 0.0) == 0
+    assert cell_state(occupancy, 0.5, 0.2) == 0
+    assert cell_state(occupancy, 1.2, 0.0) == -1  # behind the wall: never seen
+    assert cell_state(occupancy, -0.5, 0.0) == -1  # outside the field of view
 
 
 def test_a_ray_with_no_return_never_clears_a_wall_nor_what_lies_behind_it():
