@@ -32,7 +32,8 @@ How:
   odometry, the seed, the .ini files, this module, the converter's source and the MRPT
   programs): a peer is deterministic given those, and rbpf-slam takes hours over all the logs,
   so the benchmark reruns only what changed. PeerRun.cached says when a run was reused; a run
-  that failed is kept as its message.
+  that failed by itself (PeerFailed: rbpf-slam out of its memory) is kept as its message, one
+  stopped from outside (the timeout, a kill) is not.
 
 Runnable alone for a quick check: .venv/bin/python3 benchmarks/mrpt_peers.py [log ...]
 """
@@ -41,6 +42,7 @@ import math
 import os
 import resource
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -77,6 +79,11 @@ PEER_TIMEOUT = 3600.0    # s of wall time for one peer run
 # rbpf-slam's 30 particle maps of a convention centre (acapulco) grew past 23 GB here and the
 # kernel killed it (and could have killed anything else); a peer gets this much, then fails.
 PEER_MEMORY = 6 * 1024 ** 3  # bytes of address space
+STOPPED_FROM_OUTSIDE = (signal.SIGKILL, signal.SIGTERM, signal.SIGINT)
+
+
+class PeerFailed(RuntimeError):
+    """The peer ended with an error of its own (an exit status, an abort): the same inputs fail again."""
 
 
 class PeerRun(NamedTuple):
@@ -164,7 +171,7 @@ def _kept(name, log, odometry, seed, run):
     RUNS.mkdir(parents=True, exist_ok=True)
     try:
         result = run()
-    except RuntimeError as error:  # a crash or running out of memory is as repeatable as a result
+    except PeerFailed as error:  # a crash or running out of memory is as repeatable as a result
         failure.write_text(f"{error}\n")
         raise
     partial = path.with_suffix(".partial.npz")
@@ -236,9 +243,12 @@ def _run(command, output):
     wall = time.monotonic() - started
     if process.returncode != 0:
         tail = output.read_text(errors="replace").strip().splitlines()[-3:]
-        raise RuntimeError(f"{command[0]} exited with {process.returncode} after {wall:.0f} s, peak RSS "
-                           f"{usage.ru_maxrss / 1024:.0f} MB of {PEER_MEMORY / 1024 ** 3:.0f} GB allowed: "
-                           + " | ".join(tail))
+        # Killed or stopped from outside (the timeout, the kernel's OOM killer, a person) is not
+        # the peer's own answer to these inputs; an exit or an abort (out of its memory) is.
+        failure = RuntimeError if -process.returncode in STOPPED_FROM_OUTSIDE else PeerFailed
+        raise failure(f"{command[0]} exited with {process.returncode} after {wall:.0f} s, peak RSS "
+                      f"{usage.ru_maxrss / 1024:.0f} MB of {PEER_MEMORY / 1024 ** 3:.0f} GB allowed: "
+                      + " | ".join(tail))
     return usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024.0, wall
 
 
