@@ -25,47 +25,31 @@ import signal
 import sys
 import threading
 import time
-import xmlrpc.client
 
 import rosgraph.names
 import roslaunch
 import roslaunch.launch
 from roslaunch.core import RLException, is_machine_local, printerrlog
 
+from turtlebot3c_common.master_restart import MasterQuery
+
 SETTLE = 5.0  # s the master must stay the same once every node is registered
 REGISTER_WAIT = 120.0  # s to wait for the nodes to register (a node that never does: check then)
 CALLER = "/roslaunch_joining"
 
 
-class _Timeout(xmlrpc.client.Transport):
-    def make_connection(self, host):
-        connection = super().make_connection(host)
-        connection.timeout = 3.0
-        return connection
-
-
-def _call(uri, method, *args):
-    try:
-        code, _, value = getattr(xmlrpc.client.ServerProxy(uri, transport=_Timeout()), method)(CALLER, *args)
-    except (OSError, xmlrpc.client.Error):
-        return None
-    return value if code == 1 else None
-
-
-def master_identity(uri):
-    """The master's /run_id and pid ("run_id:pid"), or None when it did not answer both."""
-    pid = _call(uri, "getPid")
-    run_id = _call(uri, "getParam", "/run_id")
-    return f"{run_id}:{pid}" if pid is not None and isinstance(run_id, str) else None
+def master_at(uri):
+    return MasterQuery(uri, CALLER, timeout=3.0)
 
 
 def settled_identity(uri, wait=10.0):
     """The master's identity, asked again for up to `wait` s when it does not answer (a loaded machine)."""
     deadline = time.monotonic() + wait
-    identity = master_identity(uri)
+    master = master_at(uri)
+    identity = master.identity()
     while identity is None and time.monotonic() < deadline:
         time.sleep(0.2)
-        identity = master_identity(uri)
+        identity = master.identity()
     return identity
 
 
@@ -108,7 +92,8 @@ class StartWatch:
 
     def watch(self, uri, names):
         deadline = time.monotonic() + REGISTER_WAIT
-        while time.monotonic() < deadline and not all(_call(uri, "lookupNode", name) for name in names):
+        master = master_at(uri)
+        while time.monotonic() < deadline and not all(master.call("lookupNode", name) for name in names):
             if self.changed(uri):
                 return
             time.sleep(0.5)
@@ -116,7 +101,7 @@ class StartWatch:
         self.changed(uri)
 
     def changed(self, uri):
-        now = master_identity(uri)
+        now = master_at(uri).identity()
         if now is None or now == self.master:
             return False
         self.restarted = (f"the ROS master at {uri} was restarted while this launch started (its parameters "
