@@ -10,7 +10,7 @@ import math
 import resource
 import time
 from pathlib import Path
-from typing import NamedTuple
+from typing import NamedTuple, Optional
 
 import numpy as np
 import yaml
@@ -172,7 +172,7 @@ class AmclRun(NamedTuple):
     odometry: np.ndarray            # (N, 3) the odometry it was given
     translation_errors: np.ndarray  # (N,) m against the reference
     rotation_errors: np.ndarray     # (N,) deg
-    converged_at: int | None        # scan from which it is within AMCL_BOUND and stays (None: never)
+    converged_at: Optional[int]     # scan from which it is within AMCL_BOUND and stays (None: never)
     translation: float              # m, mean error from converged_at on (nan if it never converged)
     rotation: float                 # deg
     held: float                     # share of the scans from converged_at on within AMCL_BOUND
