@@ -8,7 +8,7 @@ import pytest
 import serial
 
 from testkit.ros_harness import wait_until
-from turtlebot3c_sim.fake_lds import Lds01Stream, Lds02Stream
+from turtlebot3c_sim.fake_lds import BAUD_RATES, Lds01Stream, Lds02Stream
 from turtlebot3c_sim.fake_robot import RealTimeRobot
 from turtlebot3c_sim.simulation import NoiseConfig, Simulation
 from turtlebot3c_sim.world import load_world
@@ -176,7 +176,7 @@ def test_lds01_stops_on_e_over_the_wire(tmp_path):
 def test_lidar_faults_corrupt_packets_yet_good_ones_still_parse(lidar_robot):
     model = lidar_robot.devices["lds"].model
     assert lidar_robot.execute("faults lds garbage=0.3,checksum=0.3") == "ok"
-    with serial.Serial(str(lidar_robot.devices["lds"].link.path), timeout=0.05) as port:
+    with serial.Serial(str(lidar_robot.devices["lds"].link.path), BAUD_RATES[model], timeout=0.05) as port:
         port.reset_input_buffer()
         data = read_for(port, 1.0)
     counts = lidar_robot.devices["lds"].status()["faults_injected"]

@@ -2,7 +2,12 @@
 from typing import Dict, List, NamedTuple
 
 OK, WARN, ERROR, STALE = 0, 1, 2, 3  # diagnostic_msgs/DiagnosticStatus levels
-LOW_BATTERY_VOLTAGE = 11.0  # V; a 3-cell LiPo is nearly empty here
+# ROBOTIS's ROS 2 OpenCR firmware switches the DYNAMIXELs' power off when its 1 s average of the
+# battery voltage stays below 11.0 V for 5 s (turtlebot3_diagnosis.cpp, updateVoltageCheck), and on
+# again above it: below this the motors stop, whatever the driver commands.
+FIRMWARE_CUTOFF_VOLTAGE = 11.0  # V
+LOW_BATTERY_VOLTAGE = 11.5  # V; warn while there is still time to charge before the cut-off
+TO_DO = "to do"  # the key of a status's one thing to do, which turtlebot3c.status shows
 
 
 class Status(NamedTuple):
@@ -27,7 +32,12 @@ def link_status(driver, port: str, baud: int) -> Status:
         values["firmware version"] = str(driver.device_info.firmware_version)
         values["model information"] = str(driver.device_info.model_information)
     if not driver.connected:
-        return Status(ERROR, "turtlebot3c: OpenCR link", f"not connected to {port}: {stats.last_error}", values)
+        if driver.other_firmware is not None:
+            values["firmware found"] = driver.other_firmware.describe()
+        if driver.fix:
+            values[TO_DO] = driver.fix
+        return Status(ERROR, "turtlebot3c: OpenCR link",
+                      f"not connected to {port}: {driver.problem or stats.last_error}", values)
     return Status(OK, "turtlebot3c: OpenCR link", "connected", values)
 
 
@@ -45,13 +55,7 @@ def sensor_statuses(sensors) -> List[Status]:
                           "right encoder": str(sensors.encoder_ticks[1]),
                           "left current": str(sensors.present_current[0]),
                           "right current": str(sensors.present_current[1])})
-    battery_values = {"voltage": f"{sensors.battery_voltage:.2f}", "percentage": f"{sensors.battery_percentage:.0f}"}
-    if not sensors.battery_present:
-        battery = Status(WARN, "turtlebot3c: battery", "no battery: running from USB power", battery_values)
-    elif sensors.battery_voltage <= LOW_BATTERY_VOLTAGE:
-        battery = Status(WARN, "turtlebot3c: battery", "low battery: charge it", battery_values)
-    else:
-        battery = Status(OK, "turtlebot3c: battery", "ok", battery_values)
+    battery = battery_status(sensors)
     sensor_values = {
         "button 1": str(int(sensors.buttons[0])), "button 2": str(int(sensors.buttons[1])),
         "bumper 1": str(int(sensors.bumpers[0])), "bumper 2": str(int(sensors.bumpers[1])),
@@ -59,3 +63,21 @@ def sensor_statuses(sensors) -> List[Status]:
         "board time (ms)": str(sensors.millis),
     }
     return [motors, battery, Status(OK, "turtlebot3c: sensors", "ok", sensor_values)]
+
+
+def battery_status(sensors) -> Status:
+    voltage = sensors.battery_voltage
+    values = {"voltage": f"{voltage:.2f}", "percentage": f"{sensors.battery_percentage:.0f}"}
+    name = "turtlebot3c: battery"
+    if not sensors.battery_present:
+        values[TO_DO] = "connect and switch on the battery: the motors do not run from USB power"
+        return Status(WARN, name, "no battery: running from USB power", values)
+    if voltage < FIRMWARE_CUTOFF_VOLTAGE:
+        values[TO_DO] = "charge or swap the battery now"
+        return Status(ERROR, name, f"{voltage:.1f} V, below the firmware's {FIRMWARE_CUTOFF_VOLTAGE:.1f} V cut-off: "
+                                   "the motors will stop", values)
+    if voltage < LOW_BATTERY_VOLTAGE:
+        values[TO_DO] = "charge the battery soon"
+        return Status(WARN, name, f"{voltage:.1f} V, low: the motors stop below {FIRMWARE_CUTOFF_VOLTAGE:.1f} V",
+                      values)
+    return Status(OK, name, f"{voltage:.1f} V", values)

@@ -11,6 +11,7 @@ import time
 from typing import NamedTuple, Optional
 
 from turtlebot3c_bringup.opencr_control_table import encode_velocity_command
+from turtlebot3c_bringup.opencr_firmware import FLASH_HINT, wrong_firmware_message
 from turtlebot3c_bringup.opencr_link import LinkError, LinkLost
 from turtlebot3c_bringup.opencr_sensors import SensorState, check_device, decode_sensor_block
 from turtlebot3c_bringup.velocity_command import clamp_to_model
@@ -23,6 +24,11 @@ HEARTBEAT_PERIOD = 0.1  # s; the firmware stops the motors after 0.5 s without a
 # teleop daemon (or anything that stops /cmd_vel) stops the robot as fast as a dead velocity source does
 COMMAND_TIMEOUT = 0.3
 MAX_CONSECUTIVE_FAILURES = 10  # failed reads in a row that mean the link is gone, not just noisy
+# s between listens for another firmware on a board that keeps ignoring pings (each takes a few seconds),
+# and between repeats of the error naming it: once at once, then seldom enough not to flood the log
+FIRMWARE_PROBE_INTERVAL = 30.0
+NO_ANSWER_FIX = ("check that the board is powered and that opencr-port is its port "
+                 "(sudo snap set turtlebot3c opencr-port=/dev/...)")
 
 
 class Reading(NamedTuple):
@@ -85,8 +91,12 @@ class _PrintLog:
 class OpenCRDriver:
     def __init__(self, link, model: RobotModel, use_imu_yaw: bool = True, clock=time.monotonic, log=None,
                  command_timeout: float = COMMAND_TIMEOUT, backoff: Optional[Backoff] = None,
-                 resume: Optional[SavedOdometry] = None):
-        """`resume`: the `saved_odometry` of a driver that died, to continue its odometry without a jump."""
+                 resume: Optional[SavedOdometry] = None, firmware_probe=None):
+        """`resume`: the `saved_odometry` of a driver that died, to continue its odometry without a jump.
+
+        `firmware_probe(port_name)`: what other firmware, if any, talks on a port whose board ignores
+        pings (an `opencr_firmware.OtherFirmware` or None); the port is closed while it runs.
+        """
         self.link = link
         self.model = model
         self.clock = clock
@@ -98,6 +108,11 @@ class OpenCRDriver:
                                       model.max_linear_velocity / model.wheel_radius, use_imu_yaw=use_imu_yaw)
         self.device_info = None
         self.connected = False
+        self.problem = ""  # while not connected: why, in one line ...
+        self.fix = ""  # ... and the one thing the owner can do about it
+        self.other_firmware = None  # the firmware found instead of ours, if any
+        self.firmware_probe = firmware_probe
+        self._next_probe = 0.0
         self.saved_odometry = None  # refreshed after every reading
         self._resume = resume
         self._next_attempt = 0.0
@@ -119,22 +134,26 @@ class OpenCRDriver:
             info = self.link.read_device_info()
         except LinkError as error:
             self.link.close()
+            if error.kind != "device_error" and self._found_other_firmware(now):
+                return
             self._retry_later(now, f"{error} (no answer at ID {self.link.device_id}: is the board flashed with "
                                    "ROBOTIS's ROS 2 TurtleBot3 firmware, which speaks Dynamixel Protocol 2.0? "
-                                   "The ROS 1 rosserial firmware does not; see the README)")
+                                   "The ROS 1 rosserial firmware does not; see the README)", fix=NO_ANSWER_FIX)
             return
         except LinkLost as error:
             self.link.close()
-            self._retry_later(now, str(error))
+            self._retry_later(now, str(error), fix=error.fix)
             return
         fatal, warnings = check_device(info, self.model.name)
         if fatal:
             self.link.close()
-            self._retry_later(now, "; ".join(fatal), level="error")
+            self._retry_later(now, "; ".join(fatal), level="error", fix=FLASH_HINT)
             return
         for warning in warnings:
             self.log.warning(warning)
         self.device_info = info
+        self.other_firmware = None
+        self.problem = self.fix = ""
         self._failures = 0
         self.odometry.rebaseline()
         self.backoff.reset()
@@ -152,10 +171,38 @@ class OpenCRDriver:
         self._attempts = 0
         self.connected = True
 
-    def _retry_later(self, now, reason, level="warning"):
+    def _found_other_firmware(self, now) -> bool:
+        """Listen for another firmware on a board that ignored the ping (now and then, not at every retry).
+
+        True when one was found this time or before: the retry is then scheduled and reported here,
+        as an error naming it, once and again every FIRMWARE_PROBE_INTERVAL.
+        """
+        if self.firmware_probe is None:
+            return False
+        if now < self._next_probe:
+            return self.other_firmware is not None and self._schedule_retry(now)
+        found = self.firmware_probe(self.link.port_name)
+        now = self.clock()  # listening took a while
+        self._next_probe = now + FIRMWARE_PROBE_INTERVAL
+        self.other_firmware = found
+        if found is None:
+            return False
+        self._schedule_retry(now)
+        self.problem = wrong_firmware_message(self.link.port_name, found)
+        self.fix = FLASH_HINT
+        self.stats.last_error = self.problem
+        self.log.error(f"{self.problem}: {self.fix}; retrying every {FIRMWARE_PROBE_INTERVAL:.0f} s")
+        return True
+
+    def _schedule_retry(self, now) -> bool:
+        self._next_attempt = now + self.backoff.next_delay()
+        return True
+
+    def _retry_later(self, now, reason, level="warning", fix=""):
         delay = self.backoff.next_delay()
         self._next_attempt = now + delay
         self.stats.last_error = reason
+        self.problem, self.fix = reason, fix
         if self._attempts == 1 or level == "error":
             getattr(self.log, level)(f"cannot reach the OpenCR on {self.link.port_name}: {reason}; "
                                      f"retrying (backoff up to {self.backoff.maximum:.1f} s)")
@@ -167,6 +214,7 @@ class OpenCRDriver:
         self._lost_since = now
         self._attempts = 0
         self._next_attempt = now + self.backoff.next_delay()
+        self.problem, self.fix = f"link lost: {reason}", "check the OpenCR's USB cable and power"
         self.log.error(f"OpenCR link lost on {self.link.port_name}: {reason}; "
                        "odometry paused, reconnecting with backoff")
         self.connected = False

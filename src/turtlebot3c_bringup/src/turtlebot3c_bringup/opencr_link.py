@@ -10,7 +10,7 @@ import dynamixel_sdk
 
 from turtlebot3c_bringup import opencr_control_table as table
 from turtlebot3c_bringup.opencr_sensors import DEVICE_INFO_SIZE, DEVICE_INFO_START, decode_device_info
-from turtlebot3c_bringup.serial_errors import DEVICE_ERRORS
+from turtlebot3c_bringup.serial_errors import DEVICE_ERRORS, explain_open_error
 
 POLL_TIMEOUT = 0.002  # s, longest single wait for reply bytes inside one SDK poll
 
@@ -25,6 +25,10 @@ class LinkError(Exception):
 
 class LinkLost(Exception):
     """The serial device itself failed or vanished (unplugged); the port has to be reopened."""
+
+    def __init__(self, message, fix=""):
+        super().__init__(message)
+        self.fix = fix  # the one thing the owner can do about it, when we know it
 
 
 _RESULT_KINDS = {
@@ -61,7 +65,8 @@ class OpenCRLink:
             # blocking timeout makes each poll sleep in select until the bytes it asks for arrive.
             port.ser.timeout = POLL_TIMEOUT
         except DEVICE_ERRORS as error:
-            raise LinkLost(f"cannot open {self.port_name}: {error}") from error
+            problem = explain_open_error(self.port_name, error, "OpenCR", "opencr-port")
+            raise LinkLost(problem.message, problem.fix) from error
         with self._lock:
             self._port = port
 

@@ -10,7 +10,8 @@ import time
 from typing import List, Tuple
 
 from . import dynamixel_protocol as dxl
-from .fake_lds import make_stream
+from . import fake_rosserial
+from .fake_lds import BAUD_RATES, make_stream
 from .faults import LIDAR_FAULTS, OPENCR_FAULTS, FaultInjector
 from .pty_link import PtyLink
 
@@ -101,23 +102,49 @@ class DeviceThread(threading.Thread):
                 "faults_injected": dict(self.faults.counts), "error": self.error}
 
 
+OPENCR_FIRMWARES = ("dynamixel", "rosserial")
+
+
 class OpenCRDevice(DeviceThread):
-    """Answers Dynamixel 2.0 instructions with `robot.board` on the link."""
+    """Answers Dynamixel 2.0 instructions with `robot.board` on the link.
+
+    With `firmware="rosserial"` the board runs ROBOTIS's ROS 1 firmware instead
+    (`fake_rosserial`): it ignores Dynamixel packets and talks rosserial, and only
+    while the host's port is set to 115200 baud, as that firmware is (the real board's
+    USB link would carry any rate: this makes the tests prove the driver asks at 115200).
+    """
 
     kind = "opencr"
 
-    def __init__(self, link_path, robot, faults: FaultInjector = None):
+    def __init__(self, link_path, robot, faults: FaultInjector = None, firmware: str = "dynamixel"):
         super().__init__(link_path, robot, faults or FaultInjector(OPENCR_FAULTS))
         self._parser = dxl.PacketParser()
         self._delayed: List[Tuple[float, bytes]] = []
         self.replies = 0
+        self.firmware = self._checked(firmware)
+        self._rosserial = fake_rosserial.RosserialFirmware()
+
+    @staticmethod
+    def _checked(firmware):
+        if firmware not in OPENCR_FIRMWARES:
+            raise ValueError(f"unknown OpenCR firmware {firmware!r}; known: {', '.join(OPENCR_FIRMWARES)}")
+        return firmware
+
+    def flash(self, firmware: str):
+        """Run another firmware from now on (the board restarts: nothing half-received survives)."""
+        self.firmware = self._checked(firmware)
+        self.powered_on()
 
     def powered_on(self):
         self._parser = dxl.PacketParser()  # USB replug: whatever was half-received is gone
         self._delayed = []
+        self._rosserial = fake_rosserial.RosserialFirmware()
 
     def serve(self):
         data = self.link.read(POLL_INTERVAL)
+        if self.firmware == "rosserial":
+            self._serve_rosserial(data)
+            return
         self._send_due_delayed()
         if not data:
             return
@@ -127,6 +154,15 @@ class OpenCRDevice(DeviceThread):
                 reply = self.robot.board.handle(packet)
             if reply is not None:
                 self._reply(reply)
+
+    def _serve_rosserial(self, data: bytes):
+        self.bytes_in += len(data)
+        if self.link.host_baud() != fake_rosserial.BAUD:
+            return  # at another rate, neither side makes sense of the other's bytes
+        now = time.monotonic()
+        reply = self._rosserial.receive(data, now) + self._rosserial.due(now)
+        if reply:
+            self.send(reply)
 
     def _reply(self, reply: bytes):
         faults = self.faults
@@ -153,7 +189,8 @@ class OpenCRDevice(DeviceThread):
     def status(self) -> dict:
         status = super().status()
         board = self.robot.board
-        status.update(replies=self.replies, crc_errors_received=self._parser.crc_errors,
+        status.update(firmware=self.firmware, rosserial_requests=self._rosserial.requests,
+                      replies=self.replies, crc_errors_received=self._parser.crc_errors,
                       requests=board.requests, heartbeat_stalls=board.heartbeat_stalls,
                       torque=board.torque_enabled, goal_velocity=list(board.goal_velocity),
                       sounds=list(board.sounds), calibrations=board.calibrations)
@@ -161,7 +198,12 @@ class OpenCRDevice(DeviceThread):
 
 
 class LidarDevice(DeviceThread):
-    """Streams LDS-01 or LDS-02 packets ray-cast in `robot.sim` on the link."""
+    """Streams LDS-01 or LDS-02 packets ray-cast in `robot.sim` on the link.
+
+    The LIDARs sit behind a USB-serial bridge, so the rate matters: while the host's port is
+    set to another baud rate than the model's, what it reads is noise (each byte scrambled), and
+    what it writes (the LDS-01's start and stop) does not reach the LIDAR.
+    """
 
     kind = "lds"
 
@@ -175,16 +217,25 @@ class LidarDevice(DeviceThread):
         with self.robot.lock:
             self.stream = make_stream(self.model, self.robot.sim.scan_ranges, self.robot.sim.time)
 
+    def swap(self, model: str):
+        """Another LIDAR model on the same port (the owner fitted the other one), started afresh."""
+        make_stream(model, self.robot.sim.scan_ranges, 0.0)  # ValueError for an unknown model
+        self.model = model
+        self.powered_on()
+
     def serve(self):
         data = self.link.read(POLL_INTERVAL)
+        host_baud = self.link.host_baud()
+        rate_matches = host_baud is None or host_baud == BAUD_RATES[self.model]
         with self.robot.lock:
             now = self.robot.sim.time
             if data:
                 self.bytes_in += len(data)
-                self.stream.command(data, now)
+                if rate_matches:
+                    self.stream.command(data, now)
             packets = self.stream.packets_until(now)
         for packet in packets:
-            self._emit(packet)
+            self._emit(packet if rate_matches else _misread(packet))
 
     def _emit(self, packet: bytes):
         faults = self.faults
@@ -203,3 +254,8 @@ class LidarDevice(DeviceThread):
         status = super().status()
         status.update(model=self.model, packets=self.packets, spinning=self.stream.spinning)
         return status
+
+
+def _misread(data: bytes) -> bytes:
+    """Bytes as a UART at the wrong rate reads them: nothing of the packets' structure survives."""
+    return bytes((byte * 73 + 41) & 0xFF for byte in data)[::2]

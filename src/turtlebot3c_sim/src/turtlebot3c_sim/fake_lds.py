@@ -200,3 +200,6 @@ def make_stream(model: str, ranges_at: RangesAt, start_time: float = 0.0):
         return streams[model](ranges_at, start_time)
     except KeyError:
         raise ValueError(f"unknown LIDAR model {model!r}; known: {', '.join(streams)}") from None
+
+
+BAUD_RATES = {"LDS-01": 230400, "LDS-02": 115200}  # each LIDAR's serial rate (ROBOTIS's drivers)

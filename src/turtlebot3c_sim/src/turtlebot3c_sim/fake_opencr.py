@@ -12,7 +12,9 @@ reply, and writes drive it. As the firmware does:
 - motor_torque_enable (149) = 0 stops the wheels and ignores velocity commands;
 - imu_re_calibration (59) = 1 recalibrates the gyro and reads back 0 afterwards;
 - sound (50) plays a melody (recorded in `sounds`);
-- writes to read-only items are refused with an access error and change nothing.
+- writes to read-only items are refused with an access error and change nothing;
+- the battery voltage (`battery_voltage`, settable) below 11.0 V for 5 s switches the
+  motors' power off until it is back above 11.0 V (updateVoltageCheck's cut-off).
 All times are the simulation's. This module does no I/O: `handle(packet)` returns the reply bytes.
 """
 import math
@@ -28,6 +30,7 @@ FIRMWARE_VERSION = 5  # the ROS 2 firmware's FIRMWARE_VER
 BAUD_RATE_INDEX = 3  # Dynamixel baud rate index of 1 Mbps
 BATTERY_VOLTAGE = 12.0  # V, a charged 3-cell pack
 BATTERY_EMPTY, BATTERY_FULL = 10.5, 12.3  # V, the firmware's percentage range
+BATTERY_CUTOFF, BATTERY_CUTOFF_DELAY = 11.0, 5.0  # V, s: the firmware's motor power cut-off
 GOAL_VELOCITY_LIMIT = 337  # the firmware's clamp of each wheel's Goal_Velocity, in 0.229 rpm units
 
 
@@ -53,6 +56,9 @@ class FakeOpenCR:
         self.heartbeat_stalls = 0
         self.requests = 0
         self._goal = (0.0, 0.0)
+        self.battery_voltage = BATTERY_VOLTAGE
+        self.motor_power = True
+        self._low_since = None
         self._last_heartbeat_change = simulation.time
         self._stalled = False
         self._put(table.MODEL_NUMBER_ITEM, table.MODEL_NUMBER)
@@ -92,11 +98,22 @@ class FakeOpenCR:
             self._stalled = True
             self.heartbeat_stalls += 1
             self._goal = (0.0, 0.0)
+        self._check_battery()
         self._drive()
         self._refresh_sensors()
 
+    def _check_battery(self):
+        if self.battery_voltage >= BATTERY_CUTOFF:
+            self._low_since = None
+            self.motor_power = True
+            return
+        if self._low_since is None:
+            self._low_since = self.sim.time
+        if self.sim.time - self._low_since >= BATTERY_CUTOFF_DELAY:
+            self.motor_power = False
+
     def _drive(self):
-        if self.torque_enabled:
+        if self.torque_enabled and self.motor_power:
             self.sim.set_command(*driven_velocity(self._goal, self.sim.model))
         else:
             self.sim.stop()
@@ -107,8 +124,8 @@ class FakeOpenCR:
         self._put(table.MILLIS, int(now * 1000.0) & 0xFFFFFFFF)
         self._put(table.MICROS, int(now * 1e6) & 0xFFFFFFFF)
         self._put(table.DEVICE_STATUS, 0)
-        self._put(table.BATTERY_VOLTAGE, int(round(BATTERY_VOLTAGE * 100)))
-        percentage = (BATTERY_VOLTAGE - BATTERY_EMPTY) / (BATTERY_FULL - BATTERY_EMPTY) * 100.0
+        self._put(table.BATTERY_VOLTAGE, int(round(self.battery_voltage * 100)))
+        percentage = (self.battery_voltage - BATTERY_EMPTY) / (BATTERY_FULL - BATTERY_EMPTY) * 100.0
         self._put(table.BATTERY_PERCENTAGE, int(round(max(0.0, min(100.0, percentage)) * 100)))
         imu = sim.imu()
         self._put(table.IMU_ANGULAR_VELOCITY_X, imu.angular_velocity_x)

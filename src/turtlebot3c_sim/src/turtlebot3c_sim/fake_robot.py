@@ -16,6 +16,9 @@ otherwise. Commands:
     faults opencr|lds SPEC        replace the device's faults, e.g. `faults opencr crc=0.1,garbage=0.01`;
                                   `faults lds none` clears them (see `faults` for the keys)
     teleport X Y YAW              move the robot (ground truth only: odometry does not see it)
+    firmware dynamixel|rosserial  flash the OpenCR: the ROS 2 firmware (the default) or the ROS 1 rosserial one
+    lidar LDS-01|LDS-02           fit the other LIDAR on the same port (its own protocol and baud rate)
+    battery VOLTS                 the battery's voltage (12.0 by default; below 11.0 V for 5 s the motors stop)
     help                          this list
 
 `send_command(socket_path, "unplug opencr")` is a client for tests in other processes.
@@ -40,7 +43,8 @@ class RealTimeRobot:
     """A Simulation advanced in real time, its OpenCR board, and the devices serving them."""
 
     def __init__(self, world="turtlebot3_world", model="burger", pose=None, seed=0, noise=None,
-                 opencr_link=None, lds_link=None, lds_model="LDS-01", opencr_faults="", lds_faults=""):
+                 opencr_link=None, lds_link=None, lds_model="LDS-01", opencr_faults="", lds_faults="",
+                 opencr_firmware="dynamixel"):
         self.lock = threading.RLock()
         self.world = load_world(world) if isinstance(world, str) else world
         self.sim = Simulation(self.world, model=model, pose=pose, seed=seed,
@@ -49,7 +53,8 @@ class RealTimeRobot:
         self.devices = {}
         if opencr_link:
             self.devices["opencr"] = OpenCRDevice(
-                opencr_link, self, FaultInjector(OPENCR_FAULTS, seed + 1, parse_faults(opencr_faults, OPENCR_FAULTS)))
+                opencr_link, self, FaultInjector(OPENCR_FAULTS, seed + 1, parse_faults(opencr_faults, OPENCR_FAULTS)),
+                firmware=opencr_firmware)
         if lds_link:
             self.devices["lds"] = LidarDevice(
                 lds_link, self, lds_model,
@@ -103,6 +108,7 @@ class RealTimeRobot:
                     "odometry": list(sim.odometry), "command": list(sim.command),
                     "collided": sim.collided, "in_contact": sim.in_contact, "collisions": sim.collisions,
                     "world": self.world.name, "model": sim.model.name,
+                    "battery_voltage": self.board.battery_voltage, "motor_power": self.board.motor_power,
                     "devices": {name: device.status() for name, device in self.devices.items()}}
 
     def execute(self, line: str) -> str:
@@ -126,6 +132,16 @@ class RealTimeRobot:
             if command == "faults" and len(args) in (1, 2):
                 spec = args[1] if len(args) == 2 and args[1] != "none" else ""
                 self.device(args[0]).faults.configure(spec)
+                return "ok"
+            if command == "firmware" and len(args) == 1:
+                self.device("opencr").flash(args[0])
+                return "ok"
+            if command == "lidar" and len(args) == 1:
+                self.device("lds").swap(args[0])
+                return "ok"
+            if command == "battery" and len(args) == 1:
+                with self.lock:
+                    self.board.battery_voltage = float(args[0])
                 return "ok"
             if command == "teleport" and len(args) == 3:
                 self.teleport(*(float(value) for value in args))

@@ -11,8 +11,14 @@ time are dropped once the pty's buffer is full, as a serial line would lose them
 import errno
 import os
 import select
+import termios
 import tty
 from pathlib import Path
+
+# termios speed codes -> bits per second, for the rates pyserial can set
+_BAUD_RATES = {getattr(termios, f"B{rate}"): rate for rate in (9600, 19200, 38400, 57600, 115200, 230400,
+                                                                 460800, 500000, 576000, 921600, 1000000)
+               if hasattr(termios, f"B{rate}")}
 
 
 class PtyLink:
@@ -56,6 +62,15 @@ class PtyLink:
             except OSError:
                 pass
         self._master = self._slave = None
+
+    def host_baud(self):
+        """The baud rate the host last set on the port (a pty keeps it, though it sends at any rate), or None."""
+        if not self.plugged:
+            return None
+        try:
+            return _BAUD_RATES.get(termios.tcgetattr(self._slave)[5])
+        except termios.error:
+            return None
 
     def read(self, timeout: float) -> bytes:
         """Bytes the host wrote, waiting at most `timeout` s; b"" when there are none."""
