@@ -1,8 +1,14 @@
 """Maps on disk in map_server's PGM + YAML format: save, reload, and every loader mode."""
+import os
+import re
+
 import numpy as np
 import pytest
 import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
+from turtlebot3c_maps import map_files
 from turtlebot3c_maps.map_files import MapFileError, OccupancyMap, load_map, read_pnm, save_map, trinary_pixels
 
 
@@ -214,3 +220,123 @@ def test_message_fields_round_trip():
     assert rebuilt == original
     with pytest.raises(ValueError, match="expected 5 x 4"):
         OccupancyMap.from_message([0] * 3, 5, 4, 0.05, (0, 0, 0))
+
+
+# --- hostile files (issue #18): refused in one line, quickly, whatever they hold --------------
+
+def alias_bomb(levels=8, width=6):
+    """A few hundred bytes of YAML whose aliases expand to width ** levels strings."""
+    lines = ['a0: &a0 ["xxxxxxxx"]']
+    for level in range(1, levels + 1):
+        lines.append(f"a{level}: &a{level} [" + ", ".join([f"*a{level - 1}"] * width) + "]")
+    lines += [f"image: *a{levels}", "resolution: 0.05", "origin: [0.0, 0.0, 0.0]", "negate: 0",
+              "occupied_thresh: 0.65", "free_thresh: 0.196"]
+    return ("\n".join(lines) + "\n").encode()
+
+
+def refusal_of(content, tmp_path, name="map.yaml"):
+    (tmp_path / name).write_bytes(content)
+    with pytest.raises(MapFileError) as refused:
+        load_map(tmp_path / name)
+    message = str(refused.value)
+    assert "\n" not in message and len(message) < 400, message
+    return message
+
+
+@pytest.mark.timeout(20)
+def test_a_yaml_alias_bomb_is_refused_before_it_expands(tmp_path):
+    assert len(alias_bomb()) < 600
+    assert "alias" in refusal_of(alias_bomb(), tmp_path)
+
+
+@pytest.mark.parametrize("content, reason", [
+    (b"image: " + b"[" * 20000 + b"]" * 20000 + b"\n", "nesting deeper than"),
+    (b"image: map.pgm\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\nnegate: " + b"7" * 5000
+     + b"\noccupied_thresh: 0.65\nfree_thresh: 0.196\n", "negate|usable YAML"),
+    (b"image: map.pgm\nresolution: 1" + b"0" * 400 + b"\norigin: [0.0, 0.0, 0.0]\nnegate: 0\n"
+     b"occupied_thresh: 0.65\nfree_thresh: 0.196\n", "resolution must be a number|usable YAML"),
+    (b"image: [unclosed\n", "not valid YAML: .* at line"),
+])
+def test_hostile_yaml_is_refused_in_one_line_not_a_traceback(tmp_path, content, reason):
+    assert re.search(reason, refusal_of(content, tmp_path))
+
+
+def test_a_yaml_over_the_size_limit_is_refused_unread(tmp_path):
+    content = b"image: map.pgm\n" + b"# padding\n" * (map_files.MAX_YAML_BYTES // 10 + 1)
+    assert "over the limit" in refusal_of(content, tmp_path)
+
+
+@pytest.mark.parametrize("content, reason", [
+    (b"P5\n99999999999999999999 1\n255\n\x00", "over the limit"),
+    (b"P5\n3000 3000\n255\n", "over the limit"),
+    (b"P2\n1 1\n255\n99999999999999999999\n", "above 8 bits"),
+    (b"P2\n1 1\n255\n-3\n", "negative sample"),
+    (b"P5\n1" + b"0" * 30 + b" 1\n255\n\x00", "malformed header"),
+])
+def test_hostile_images_are_refused_in_one_line_before_their_pixels_are_read(tmp_path, content, reason):
+    (tmp_path / "map.pgm").write_bytes(content)
+    write_yaml(tmp_path / "a.yaml")
+    assert re.search(reason, refusal_of((tmp_path / "a.yaml").read_bytes(), tmp_path, "a.yaml"))
+
+
+def test_an_image_over_the_file_size_limit_is_refused_unread(tmp_path):
+    with open(tmp_path / "map.pgm", "wb") as stream:
+        stream.write(b"P5\n1 1\n255\n")
+        stream.truncate(map_files.MAX_IMAGE_BYTES + 1)
+    write_yaml(tmp_path / "a.yaml")
+    assert "over the limit" in refusal_of((tmp_path / "a.yaml").read_bytes(), tmp_path, "a.yaml")
+
+
+def test_a_fifo_for_an_image_is_refused_not_waited_on(tmp_path):
+    os.mkfifo(tmp_path / "map.pgm")
+    write_yaml(tmp_path / "a.yaml")
+    assert "not a regular file" in refusal_of((tmp_path / "a.yaml").read_bytes(), tmp_path, "a.yaml")
+
+
+@pytest.mark.parametrize("origin", [(-10.0, 1.0e-05, 0.0), (1e16, -2.5e-300, 3.0)])
+def test_origins_with_exponents_are_written_as_yaml_floats_and_read_back(tmp_path, origin):
+    original = OccupancyMap(np.zeros((2, 3), dtype=np.int8), 1e-3, origin)
+    assert load_map(save_map(original, tmp_path / "m")[0]) == original
+
+
+def test_the_size_is_read_from_the_header_alone(tmp_path):
+    (tmp_path / "map.pgm").write_bytes(b"P5\n# a comment\n7 5\n255\n")  # no pixels at all
+    assert map_files.pnm_size(tmp_path / "map.pgm") == (7, 5)
+
+
+YAML_PIECES = st.sampled_from([
+    "image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh", "mode", ": ", "\n", "- ", "[",
+    "]", "{", "}", ", ", "&a ", "*a", "!!str ", "!!python/object ", "'", '"', "map.pgm", "0.05", "1e-05", "-3",
+    "99999999999999999999", "trinary", "raw", "~", "#", "  ", "---\n", "...\n", "? ", "|", ">", "\t", "\x00",
+])
+
+
+def assert_read_or_refused_in_one_line(read, content):
+    try:
+        read(content)
+    except MapFileError as error:
+        assert "\n" not in str(error) and len(str(error)) < 400
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.one_of(st.binary(max_size=400), st.lists(YAML_PIECES, max_size=60).map(lambda p: "".join(p).encode())))
+def test_map_yaml_reader_survives_any_bytes(content):
+    assert_read_or_refused_in_one_line(lambda data: map_files.parse_map_description(data, "fuzz.yaml"), content)
+
+
+PNM_HEADERS = st.builds(
+    lambda magic, width, height, maxval, comment: f"{magic}\n{comment}{width} {height}\n{maxval}\n".encode(),
+    st.sampled_from(["P2", "P3", "P5", "P6", "P4", "P7"]),
+    st.one_of(st.integers(min_value=0, max_value=20), st.integers(min_value=0, max_value=10 ** 25)),
+    st.one_of(st.integers(min_value=0, max_value=20), st.integers(min_value=0, max_value=10 ** 25)),
+    st.sampled_from([0, 1, 15, 255, 256, 65535, 10 ** 20]),
+    st.sampled_from(["", "# comment\n", "#\n"]))
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.one_of(st.binary(max_size=400), st.tuples(PNM_HEADERS, st.binary(max_size=1200)).map(lambda t: t[0] + t[1])))
+def test_image_reader_survives_any_bytes(content):
+    def read(data):
+        pixels = map_files.parse_pnm(data, "fuzz.pgm")
+        assert pixels.dtype == np.uint8 and pixels.ndim == 3 and pixels.size <= 3 * map_files.MAX_MAP_CELLS
+    assert_read_or_refused_in_one_line(read, content)

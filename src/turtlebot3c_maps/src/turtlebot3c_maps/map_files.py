@@ -31,15 +31,26 @@ Pure Python and numpy; no rospy. Public API:
 
 ``MapFileError``
     Raised (a ``ValueError``) for a missing file, a missing or invalid YAML key, an
-    unsupported or truncated image; the message names the file and the problem.
+    unsupported or truncated image, a file over the limits below; the message is one
+    line naming the file and the problem.
+
+Limits, checked before anything big is read or allocated, so that no file (a map given to
+the owner to import, one left in the map folder) costs unbounded memory or time: a YAML
+file of at most ``MAX_YAML_BYTES``, nested at most ``MAX_YAML_DEPTH`` deep, with no aliases
+(map_server's keys need none, and an alias bomb of a few hundred bytes expands to
+gigabytes); an image of at most ``MAX_IMAGE_BYTES`` and ``MAX_MAP_CELLS`` cells.
+``parse_map_description(content, name)`` and ``parse_pnm(content, name)`` read bytes already
+in memory (the map store reads files through descriptors it opened itself).
 
 ``trinary_pixels(data, occupied_threshold, free_threshold)``, ``read_pnm(path)``,
-``write_pgm(path, pixels, comment)`` are the building blocks, public for tools and tests;
+``pnm_size(path)`` (width, height from the header only), ``write_pgm(path, pixels, comment)``
+and ``map_yaml(description)`` are the building blocks, public for tools and tests;
 ``write_atomically(path, content)`` replaces a file whole or not at all (also for map_store).
 """
 import json
 import math
 import os
+import stat
 import tempfile
 
 import numpy as np
@@ -59,6 +70,14 @@ SAVED_OCCUPIED_THRESH = 0.65
 SAVED_FREE_THRESH = 0.196
 
 MODES = ("trinary", "scale", "raw")
+
+# A map_server YAML is some 200 bytes of one mapping; an image of 2000 x 2000 cells is 100 m x 100 m
+# at 5 cm, beyond any TurtleBot3 LIDAR's building, and loads in some 150 MB.
+MAX_YAML_BYTES = 64 * 1024
+MAX_YAML_DEPTH = 8
+MAX_MAP_CELLS = 4000000
+MAX_IMAGE_BYTES = 16 * 1024 * 1024
+MAX_PNM_HEADER_BYTES = 4096
 REQUIRED_KEYS = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")
 
 
@@ -139,18 +158,35 @@ def save_map(occupancy_map, prefix, occupied_threshold=65, free_threshold=25):
         raise MapFileError(f"cannot save map {prefix}: folder {folder} does not exist")
     pixels = trinary_pixels(occupancy_map.data, occupied_threshold, free_threshold)
     write_pgm(pgm_path, pixels, f"turtlebot3c map {occupancy_map.resolution:.3f} m/pix")
-    write_atomically(yaml_path, map_yaml_text(os.path.basename(pgm_path), occupancy_map).encode())
+    description = {"image": os.path.basename(pgm_path), "resolution": occupancy_map.resolution,
+                   "origin": occupancy_map.origin, "negate": 0, "occupied_thresh": SAVED_OCCUPIED_THRESH,
+                   "free_thresh": SAVED_FREE_THRESH}
+    write_atomically(yaml_path, map_yaml(description).encode())
     return yaml_path, pgm_path
 
 
-def map_yaml_text(image_name, occupancy_map):
-    x, y, yaw = occupancy_map.origin
-    return (f"image: {_yaml_scalar(image_name)}\n"
-            f"resolution: {occupancy_map.resolution!r}\n"
-            f"origin: [{x!r}, {y!r}, {yaw!r}]\n"
-            "negate: 0\n"
-            f"occupied_thresh: {SAVED_OCCUPIED_THRESH}\n"
-            f"free_thresh: {SAVED_FREE_THRESH}\n")
+def map_yaml(description):
+    """map_server YAML text for validated keys (as read_map_description returns them)."""
+    x, y, yaw = description["origin"]
+    text = (f"image: {_yaml_scalar(description['image'])}\n"
+            f"resolution: {_yaml_float(description['resolution'])}\n"
+            f"origin: [{_yaml_float(x)}, {_yaml_float(y)}, {_yaml_float(yaw)}]\n"
+            f"negate: {int(description['negate'])}\n"
+            f"occupied_thresh: {_yaml_float(description['occupied_thresh'])}\n"
+            f"free_thresh: {_yaml_float(description['free_thresh'])}\n")
+    if description.get("mode", "trinary") != "trinary":
+        text += f"mode: {description['mode']}\n"
+    return text
+
+
+def _yaml_float(value):
+    """A float YAML 1.1 reads back as that float: PyYAML (and yaml-cpp's map_server) take `1e-05` for a
+    string, so an exponent gets a mantissa with a point (`1.0e-05`)."""
+    text = repr(float(value))
+    mantissa, exponent = text.split("e") if "e" in text else (text, None)
+    if exponent is not None and "." not in mantissa:
+        text = f"{mantissa}.0e{exponent}"
+    return text
 
 
 def _yaml_scalar(text):
@@ -193,9 +229,13 @@ def write_atomically(path, content):
 def load_map(yaml_path):
     """Read a map_server YAML and its image into an OccupancyMap, cell for cell as map_server."""
     yaml_path = os.fspath(yaml_path)
-    description = _read_yaml(yaml_path)
+    description = read_map_description(yaml_path)
     image_path = _image_path(yaml_path, description["image"])
-    channels = read_pnm(image_path)
+    return occupancy_map_of(description, read_pnm(image_path))
+
+
+def occupancy_map_of(description, channels):
+    """The map a validated description and its image's pixels (from read_pnm / parse_pnm) make."""
     data = image_to_occupancy(channels, description["negate"], description["occupied_thresh"],
                               description["free_thresh"], description["mode"])
     return OccupancyMap(data, description["resolution"], description["origin"])
@@ -203,51 +243,139 @@ def load_map(yaml_path):
 
 def read_map_description(yaml_path):
     """The validated keys of a map YAML (``mode`` filled in as map_server would)."""
-    return _read_yaml(os.fspath(yaml_path))
+    yaml_path = os.fspath(yaml_path)
+    return parse_map_description(read_bounded(yaml_path, MAX_YAML_BYTES, "map file"), yaml_path)
 
 
-def _read_yaml(yaml_path):
+def read_bounded(path, limit, what):
+    """The content of the regular file at `path` (links followed), refused unread when over `limit` bytes.
+    Opened without blocking, so a FIFO or a device is refused rather than waited on or read for ever."""
     try:
-        with open(yaml_path, "rb") as stream:
-            document = yaml.safe_load(stream)
+        descriptor = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
     except OSError as error:
-        raise MapFileError(f"cannot read map file {yaml_path}: {error.strerror or error}") from error
+        raise MapFileError(f"cannot read {what} {path}: {error.strerror or error}") from None
+    with os.fdopen(descriptor, "rb") as stream:
+        return read_stream_bounded(stream, path, limit, what)
+
+
+def read_stream_bounded(stream, path, limit, what):
+    """The content of an open regular file, refused when over `limit` bytes (checked before and while reading)."""
+    status = os.fstat(stream.fileno())
+    if not stat.S_ISREG(status.st_mode):
+        raise MapFileError(f"{what} {path} is not a regular file")
+    if status.st_size > limit:
+        raise MapFileError(f"{what} {path} has {status.st_size} bytes, over the limit of {limit}")
+    try:
+        content = stream.read(limit + 1)
+    except OSError as error:
+        raise MapFileError(f"cannot read {what} {path}: {error.strerror or error}") from None
+    if len(content) > limit:
+        raise MapFileError(f"{what} {path} grew over the limit of {limit} bytes while read")
+    return content
+
+
+class _MapYamlLoader(yaml.SafeLoader):
+    """PyYAML's safe loader without aliases and with a nesting limit: map_server's keys need neither,
+    and both let a few hundred bytes cost unbounded memory, time or stack."""
+
+    _depth = 0
+
+    def compose_node(self, parent, index):
+        if self.check_event(yaml.AliasEvent):
+            raise yaml.composer.ComposerError(None, None, "an alias (*name), which map files may not use",
+                                              self.peek_event().start_mark)
+        self._depth += 1
+        try:
+            if self._depth > MAX_YAML_DEPTH:
+                raise yaml.composer.ComposerError(None, None, f"nesting deeper than {MAX_YAML_DEPTH} levels",
+                                                  self.peek_event().start_mark)
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+
+
+def _load_yaml(content, path):
+    loader = None
+    try:
+        loader = _MapYamlLoader(content)  # which already decodes and checks the characters
+        return loader.get_single_data()
+    except yaml.MarkedYAMLError as error:
+        where = f" at line {error.problem_mark.line + 1}" if error.problem_mark else ""
+        raise MapFileError(f"map file {path} is not valid YAML: {error.problem}{where}") from None
     except yaml.YAMLError as error:
-        raise MapFileError(f"map file {yaml_path} is not valid YAML: {error}") from error
+        raise MapFileError(f"map file {path} is not valid YAML: {_one_line(error)}") from None
+    except (ValueError, OverflowError, RecursionError) as error:  # a number too long for Python, say
+        raise MapFileError(f"map file {path} is not a usable YAML file: {_shown(str(error))}") from None
+    finally:
+        if loader is not None:
+            loader.dispose()
+
+
+def parse_map_description(content, path):
+    """The validated keys of map YAML text `content` (bytes); `path` names it in errors."""
+    document = _load_yaml(content, path)
     if not isinstance(document, dict):
-        raise MapFileError(f"map file {yaml_path} is not a YAML mapping of map_server keys")
+        raise MapFileError(f"map file {path} is not a YAML mapping of map_server keys")
     missing = [key for key in REQUIRED_KEYS if key not in document]
     if missing:
         raise MapFileError("map file {} lacks the key(s) {} (map_server needs {})".format(
-            yaml_path, ", ".join(missing), ", ".join(REQUIRED_KEYS)))
+            path, ", ".join(missing), ", ".join(REQUIRED_KEYS)))
 
     def number(key):
         value = document[key]
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise MapFileError(f"map file {yaml_path}: {key} must be a number, got {value!r}")
+        if not _finite_number(value):
+            raise MapFileError(f"map file {path}: {key} must be a number, got {_shown(value)}")
         return float(value)
 
     image = document["image"]
     if not isinstance(image, str) or not image:
-        raise MapFileError(f"map file {yaml_path}: image must be a non-empty file name, got {image!r}")
+        raise MapFileError(f"map file {path}: image must be a non-empty file name, got {_shown(image)}")
     resolution = number("resolution")
     if resolution <= 0:
-        raise MapFileError(f"map file {yaml_path}: resolution must be positive, got {resolution}")
+        raise MapFileError(f"map file {path}: resolution must be positive, got {resolution}")
     origin = document["origin"]
-    if not isinstance(origin, (list, tuple)) or len(origin) != 3 or not all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in origin):
-        raise MapFileError(f"map file {yaml_path}: origin must be [x, y, yaw] numbers, got {origin!r}")
+    if not isinstance(origin, (list, tuple)) or len(origin) != 3 or not all(_finite_number(v) for v in origin):
+        raise MapFileError(f"map file {path}: origin must be [x, y, yaw] numbers, got {_shown(origin)}")
     negate = document["negate"]
     if isinstance(negate, bool) or not isinstance(negate, int):
-        raise MapFileError(f"map file {yaml_path}: negate must be an integer (0 or 1), got {negate!r}")
+        raise MapFileError(f"map file {path}: negate must be an integer (0 or 1), got {_shown(negate)}")
     mode = document.get("mode", "trinary")
     if mode not in MODES:
-        raise MapFileError("map file {}: mode {!r} is not one of {}".format(yaml_path, mode, ", ".join(MODES)))
+        raise MapFileError("map file {}: mode {} is not one of {}".format(path, _shown(mode), ", ".join(MODES)))
     return {
         "image": image, "resolution": resolution, "origin": tuple(float(v) for v in origin),
-        "negate": negate, "occupied_thresh": number("occupied_thresh"), "free_thresh": number("free_thresh"),
-        "mode": mode,
+        "negate": 1 if negate else 0,  # map_server negates on any non-zero value
+        "occupied_thresh": number("occupied_thresh"), "free_thresh": number("free_thresh"), "mode": mode,
     }
+
+
+def _finite_number(value):
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:  # an integer too large for a float
+        return False
+
+
+def _shown(value, limit=60):
+    """A value for an error message: short, one line, and cheap whatever the file held."""
+    if isinstance(value, (list, tuple)) and len(value) > 8:
+        return f"a list of {len(value)} items"
+    if isinstance(value, dict):
+        return f"a mapping of {len(value)} keys"
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 64:
+        return "an integer of more than 19 digits"
+    try:
+        text = repr(value)
+    except (ValueError, RecursionError):
+        return f"a {type(value).__name__}"
+    text = _one_line(text)
+    return text if len(text) <= limit else text[:limit] + "..."
+
+
+def _one_line(text):
+    return " ".join(str(text).split())
 
 
 def _image_path(yaml_path, image):
@@ -290,23 +418,27 @@ def read_pnm(path):
     library) does.
     """
     path = os.fspath(path)
+    return parse_pnm(read_bounded(path, MAX_IMAGE_BYTES, "map image"), path)
+
+
+def pnm_size(path):
+    """(width, height) of a PGM/PPM file from its header alone, checked against the limits."""
+    path = os.fspath(path)
     try:
         with open(path, "rb") as stream:
-            content = stream.read()
+            head = stream.read(MAX_PNM_HEADER_BYTES)
     except OSError as error:
-        raise MapFileError(f"cannot read map image {path}: {error.strerror or error}") from error
-    magic = content[:2]
-    if magic not in (b"P2", b"P3", b"P5", b"P6"):
-        raise MapFileError(f"map image {path} is not a PGM/PPM file (P2, P3, P5 or P6); starts with {content[:8]!r}")
-    channels = 3 if magic in (b"P3", b"P6") else 1
-    fields, position = _pnm_header(path, content)
-    width, height, maxval = fields
-    if width <= 0 or height <= 0:
-        raise MapFileError(f"map image {path} has an empty size {width} x {height}")
-    if not 0 < maxval <= 255:
-        raise MapFileError(f"map image {path}: maxval {maxval} unsupported (8-bit images only, maxval 1..255)")
+        raise MapFileError(f"cannot read map image {path}: {error.strerror or error}") from None
+    width, height, _, _ = _pnm_layout(path, head)
+    return width, height
+
+
+def parse_pnm(content, path):
+    """Pixels of PGM/PPM file content (bytes), as read_pnm; `path` names it in errors."""
+    width, height, maxval, position = _pnm_layout(path, content)
+    channels = 3 if content[:2] in (b"P3", b"P6") else 1
     count = width * height * channels
-    if magic in (b"P5", b"P6"):
+    if content[:2] in (b"P5", b"P6"):
         body = content[position + 1:position + 1 + count]
         if len(body) < count:
             raise MapFileError(f"map image {path} is truncated: {len(body)} of {count} pixel bytes")
@@ -316,14 +448,39 @@ def read_pnm(path):
             samples = np.array(_strip_comments(content[position:]).split()[:count + 1], dtype=np.int64)
         except ValueError:
             raise MapFileError(f"map image {path} has a non-numeric sample") from None
+        except OverflowError:
+            raise MapFileError(f"map image {path} has a sample above 8 bits") from None
         if samples.size < count:
             raise MapFileError(f"map image {path} is truncated: {samples.size} of {count} samples")
         samples = samples[:count]
     if samples.max(initial=0) > maxval:
         raise MapFileError(f"map image {path} has samples above its maxval {maxval}")
+    if samples.min(initial=0) < 0:
+        raise MapFileError(f"map image {path} has a negative sample")
     if maxval < 255:
         samples = samples * 255 // maxval
     return samples.astype(np.uint8).reshape(height, width, channels)
+
+
+def _pnm_layout(path, content):
+    """width, height, maxval and the index of the byte that ends the header, all checked against the limits
+    before a single pixel is read."""
+    magic = content[:2]
+    if magic not in (b"P2", b"P3", b"P5", b"P6"):
+        raise MapFileError(f"map image {path} is not a PGM/PPM file (P2, P3, P5 or P6); starts with {content[:8]!r}")
+    (width, height, maxval), position = _pnm_header(path, content)
+    if width <= 0 or height <= 0:
+        raise MapFileError(f"map image {path} has an empty size {width} x {height}")
+    if width * height > MAX_MAP_CELLS:
+        raise MapFileError(f"map image {path} has {_count(width)} x {_count(height)} cells, over the limit of"
+                           f" {MAX_MAP_CELLS}")
+    if not 0 < maxval <= 255:
+        raise MapFileError(f"map image {path}: maxval {_count(maxval)} unsupported (8-bit images only, maxval 1..255)")
+    return width, height, maxval, position
+
+
+def _count(number):
+    return str(number) if number.bit_length() <= 64 else "more than 10^19"
 
 
 def _strip_comments(text):
@@ -340,10 +497,11 @@ def _pnm_header(path, content):
                 position = size if end < 0 else end
             position += 1
         start = position
-        while position < size and content[position:position + 1].isdigit():
+        while position < size and content[position:position + 1].isdigit() and position - start < 20:
             position += 1
-        if start == position:
-            raise MapFileError(f"map image {path} has a malformed header (need width, height, maxval)")
+        if start == position or (position < size and content[position:position + 1].isdigit()):
+            raise MapFileError(f"map image {path} has a malformed header (need width, height, maxval"
+                               " of at most 20 digits)")
         fields.append(int(content[start:position]))
     if position >= size or not content[position:position + 1].isspace():
         raise MapFileError(f"map image {path} has a malformed header after maxval")
