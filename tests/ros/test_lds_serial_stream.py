@@ -58,4 +58,5 @@ def test_a_missing_device_is_retried_quietly(tmp_path):
     for _ in range(20):
         assert stream.read() == b""
     assert not stream.is_open
-    assert len(log.lines) == 1 and "cannot open" in log.lines[0][1]
+    assert len(log.lines) == 1 and "no LIDAR at" in log.lines[0][1] and "lds-port=" in log.lines[0][1]
+    assert stream.problem.fix.startswith("plug the LIDAR in")

@@ -3,14 +3,17 @@ import time
 
 import serial
 
-from turtlebot3c_bringup.serial_errors import DEVICE_ERRORS
+from turtlebot3c_bringup.serial_errors import DEVICE_ERRORS, SerialProblem, explain_open_error
 from turtlebot3c_common.backoff import Backoff
 
 
 class SerialStream:
     def __init__(self, port: str, baud: int, on_open: bytes = b"", on_close: bytes = b"", log=None,
-                 clock=None, backoff=None):
-        """`on_open` / `on_close` are written after opening and before closing (e.g. motor start/stop)."""
+                 clock=None, backoff=None, device: str = "LIDAR", option: str = "lds-port"):
+        """`on_open` / `on_close` are written after opening and before closing (e.g. motor start/stop).
+
+        `device` and `option` (the snap option setting `port`) name things in the messages.
+        """
         self.port = port
         self.baud = baud
         self.on_open = on_open
@@ -22,6 +25,9 @@ class SerialStream:
         self.losses = 0
         self.reconnections = 0
         self.last_error = ""
+        self.problem = SerialProblem("", "")  # why the port is not open, and what to do
+        self.device = device
+        self.option = option
         self._next_attempt = 0.0
         self._reported = False
         self._closed = False  # closed for good (node shutdown): no more reopening, no error reports
@@ -41,11 +47,13 @@ class SerialStream:
         except DEVICE_ERRORS as error:
             self._close()
             self.last_error = str(error)
+            self.problem = explain_open_error(self.port, error, self.device, self.option)
             self._next_attempt = now + self.backoff.next_delay()
             if not self._reported:
-                self._report("warning", f"cannot open {self.port}: {error}; retrying")
+                self._report("warning", f"{self.problem.message}: {self.problem.fix}; retrying")
                 self._reported = True
             return False
+        self.problem = SerialProblem("", "")
         self.backoff.reset()
         if self.losses:
             self.reconnections += 1
@@ -77,6 +85,11 @@ class SerialStream:
             except DEVICE_ERRORS:
                 pass
         self.serial = None
+
+    def release(self):
+        """Close the port for now (another reader needs it); the next read opens it again."""
+        self._close()
+        self._next_attempt = 0.0
 
     def close(self):
         self._closed = True
