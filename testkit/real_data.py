@@ -245,7 +245,7 @@ def converged_scan(translation_errors, rotation_errors, bound=AMCL_BOUND, hold=A
 class AmclFigures(NamedTuple):
     translation: float      # m, mean error after convergence
     rotation: float         # deg
-    converged_at: int | None
+    converged_at: Optional[int]
     scans_per_second: float
     converged: bool
     held: float             # share of the scans after convergence within AMCL_BOUND
