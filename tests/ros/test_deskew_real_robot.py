@@ -14,6 +14,9 @@ from turtlebot3c_sim.evaluation import cell_agreement, occupied_precision
 from turtlebot3c_sim.fake_robot import send_command
 from turtlebot3c_sim.world import load_world
 
+# The spun fixture starts its own roscore (not through ros_master): keep the module out of the core20 lane.
+pytestmark = pytest.mark.needs_master
+
 GRID = "nav_msgs/OccupancyGrid"
 SCAN = "sensor_msgs/LaserScan"
 ODOMETRY = "nav_msgs/Odometry"
