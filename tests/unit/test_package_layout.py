@@ -13,7 +13,7 @@ GRAPH = PACKAGE_GRAPH["read_dependencies"](REPO / "src")
 LAYERS = [
     {"turtlebot3c_common", "turtlebot3c_description"},
     {"turtlebot3c_bringup", "turtlebot3c_teleop", "turtlebot3c_maps"},
-    {"turtlebot3c_slam", "turtlebot3c_navigation"},
+    {"turtlebot3c_slam", "turtlebot3c_navigation", "turtlebot3c_status"},
     {"turtlebot3c_sim", "turtlebot3c"},
 ]
 
