@@ -299,9 +299,12 @@ def test_origins_with_exponents_are_written_as_yaml_floats_and_read_back(tmp_pat
     assert load_map(save_map(original, tmp_path / "m")[0]) == original
 
 
-def test_the_size_is_read_from_the_header_alone(tmp_path):
-    (tmp_path / "map.pgm").write_bytes(b"P5\n# a comment\n7 5\n255\n")  # no pixels at all
+def test_the_size_is_read_from_the_header_and_a_short_file_is_truncated(tmp_path):
+    (tmp_path / "map.pgm").write_bytes(b"P5\n# a comment\n7 5\n255\n" + bytes(35))
     assert map_files.pnm_size(tmp_path / "map.pgm") == (7, 5)
+    (tmp_path / "map.pgm").write_bytes(b"P5\n# a comment\n7 5\n255\n" + bytes(34))
+    with pytest.raises(MapFileError, match="truncated: 34 of 35"):
+        map_files.pnm_size(tmp_path / "map.pgm")
 
 
 YAML_PIECES = st.sampled_from([

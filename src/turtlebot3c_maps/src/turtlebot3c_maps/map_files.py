@@ -43,8 +43,9 @@ gigabytes); an image of at most ``MAX_IMAGE_BYTES`` and ``MAX_MAP_CELLS`` cells.
 in memory (the map store reads files through descriptors it opened itself).
 
 ``trinary_pixels(data, occupied_threshold, free_threshold)``, ``read_pnm(path)``,
-``pnm_size(path)`` (width, height from the header only), ``write_pgm(path, pixels, comment)``
-and ``map_yaml(description)`` are the building blocks, public for tools and tests;
+``pnm_size(path)`` (width, height from the header only), ``shown(value)`` (a value, short, for
+a message), ``write_pgm(path, pixels, comment)`` and ``map_yaml(description)`` are the
+building blocks, public for tools and tests;
 ``write_atomically(path, content)`` replaces a file whole or not at all (also for map_store).
 """
 import json
@@ -305,7 +306,7 @@ def _load_yaml(content, path):
     except yaml.YAMLError as error:
         raise MapFileError(f"map file {path} is not valid YAML: {_one_line(error)}") from None
     except (ValueError, OverflowError, RecursionError) as error:  # a number too long for Python, say
-        raise MapFileError(f"map file {path} is not a usable YAML file: {_shown(str(error))}") from None
+        raise MapFileError(f"map file {path} is not a usable YAML file: {shown(str(error))}") from None
     finally:
         if loader is not None:
             loader.dispose()
@@ -324,24 +325,24 @@ def parse_map_description(content, path):
     def number(key):
         value = document[key]
         if not _finite_number(value):
-            raise MapFileError(f"map file {path}: {key} must be a number, got {_shown(value)}")
+            raise MapFileError(f"map file {path}: {key} must be a number, got {shown(value)}")
         return float(value)
 
     image = document["image"]
     if not isinstance(image, str) or not image:
-        raise MapFileError(f"map file {path}: image must be a non-empty file name, got {_shown(image)}")
+        raise MapFileError(f"map file {path}: image must be a non-empty file name, got {shown(image)}")
     resolution = number("resolution")
     if resolution <= 0:
         raise MapFileError(f"map file {path}: resolution must be positive, got {resolution}")
     origin = document["origin"]
     if not isinstance(origin, (list, tuple)) or len(origin) != 3 or not all(_finite_number(v) for v in origin):
-        raise MapFileError(f"map file {path}: origin must be [x, y, yaw] numbers, got {_shown(origin)}")
+        raise MapFileError(f"map file {path}: origin must be [x, y, yaw] numbers, got {shown(origin)}")
     negate = document["negate"]
     if isinstance(negate, bool) or not isinstance(negate, int):
-        raise MapFileError(f"map file {path}: negate must be an integer (0 or 1), got {_shown(negate)}")
+        raise MapFileError(f"map file {path}: negate must be an integer (0 or 1), got {shown(negate)}")
     mode = document.get("mode", "trinary")
     if mode not in MODES:
-        raise MapFileError("map file {}: mode {} is not one of {}".format(path, _shown(mode), ", ".join(MODES)))
+        raise MapFileError("map file {}: mode {} is not one of {}".format(path, shown(mode), ", ".join(MODES)))
     return {
         "image": image, "resolution": resolution, "origin": tuple(float(v) for v in origin),
         "negate": 1 if negate else 0,  # map_server negates on any non-zero value
@@ -358,7 +359,7 @@ def _finite_number(value):
         return False
 
 
-def _shown(value, limit=60):
+def shown(value, limit=60):
     """A value for an error message: short, one line, and cheap whatever the file held."""
     if isinstance(value, (list, tuple)) and len(value) > 8:
         return f"a list of {len(value)} items"
@@ -422,14 +423,20 @@ def read_pnm(path):
 
 
 def pnm_size(path):
-    """(width, height) of a PGM/PPM file from its header alone, checked against the limits."""
+    """(width, height) of a PGM/PPM file from its header alone, checked against the limits; a binary
+    image shorter than its header says is refused as truncated (from its size, unread)."""
     path = os.fspath(path)
     try:
         with open(path, "rb") as stream:
             head = stream.read(MAX_PNM_HEADER_BYTES)
+            size = os.fstat(stream.fileno()).st_size
     except OSError as error:
         raise MapFileError(f"cannot read map image {path}: {error.strerror or error}") from None
-    width, height, _, _ = _pnm_layout(path, head)
+    width, height, _, position = _pnm_layout(path, head)
+    if head[:2] in (b"P5", b"P6"):
+        count = width * height * (3 if head[:2] == b"P6" else 1)
+        if size < position + 1 + count:
+            raise MapFileError(f"map image {path} is truncated: {max(size - position - 1, 0)} of {count} pixel bytes")
     return width, height
 
 
