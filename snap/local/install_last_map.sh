@@ -17,6 +17,12 @@ new_pgm="$map_dir/new_map.pgm"
 new_bag="$map_dir/new_map.bag"
 current="$map_dir/current_map.yaml"
 
+# The map folder's lock (the maps app and the configure hook take it too): the
+# new map is named and made current while no map is renamed, removed or chosen.
+mkdir -p "$map_dir"
+exec 9>>"$map_dir/.lock"
+flock 9
+
 # A name no other map or recording has, even for two saves within one second.
 unused_name() {
   local stamp name suffix=1
