@@ -141,6 +141,33 @@ def test_lds02_parser_survives_any_bytes(garbage, chunk):
     assert len(feed_in_chunks(parser, lds02_stream(3), chunk)) >= 2
 
 
+def test_lds02_packets_whose_angle_never_wraps_are_dropped_in_bounded_memory_and_counted():
+    # Issue #18 item 5: CRC-valid packets of a stalled motor (speed 0, one fixed angle) never end a revolution.
+    stuck = lds02_protocol.encode_packet(0, 9000, 9000, [(1000, 200)] * 12)
+    lds = Lds02()
+    scans = feed_in_chunks(lds, stuck * 2000, 470)
+    assert not scans and lds.parser.packets_accepted == 2000
+    assert len(lds.parser.current_points) <= lds02_protocol.MAX_REVOLUTION_POINTS
+    assert lds.counters()["overlong revolutions dropped"] == 2000 * 12 // lds02_protocol.MAX_REVOLUTION_POINTS
+    assert len(feed_in_chunks(lds, lds02_stream(3))) >= 2  # a turning LIDAR is read again at once
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.one_of(st.binary(max_size=200), st.sampled_from(["lds01", "lds02", "stuck"])), max_size=40),
+       st.integers(min_value=1, max_value=500))
+def test_both_parsers_hold_at_most_a_packet_of_bytes_and_a_revolution_of_points(pieces, chunk):
+    stuck = lds02_protocol.encode_packet(0, 100, 100, [(500, 10)] * 12) * 50
+    known = {"lds01": lds01_revolution(), "lds02": lds02_stream(1), "stuck": stuck}
+    data = b"".join(known.get(piece, piece) for piece in pieces)
+    lds01, lds02 = lds01_protocol.Lds01Parser(), lds02_protocol.Lds02Parser()
+    for start in range(0, len(data), chunk):
+        lds01.feed(data[start:start + chunk])
+        lds02.feed(data[start:start + chunk])
+        assert lds01.buffered <= lds01_protocol.PACKET_SIZE + 1 and len(lds01._packets) <= 60
+        assert lds02.buffered < lds02_protocol.PACKET_SIZE
+        assert len(lds02.current_points) <= lds02_protocol.MAX_REVOLUTION_POINTS
+
+
 @settings(max_examples=100, deadline=None)
 @given(st.integers(min_value=0, max_value=2**32 - 1))
 def test_both_lidars_survive_a_real_stream_with_random_bytes_sprinkled_in(seed):

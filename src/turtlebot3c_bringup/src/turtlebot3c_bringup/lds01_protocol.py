@@ -59,7 +59,8 @@ def encode_packet(index: int, speed_rpm_x10: int, readings) -> bytes:
 
 
 class Lds01Parser:
-    """Feed it bytes as they come; it returns the revolutions completed by them. Never raises on data."""
+    """Feed it bytes as they come; it returns the revolutions completed by them. Never raises on data,
+    and holds at most one packet and two bytes, and one revolution's packets, between feeds."""
 
     def __init__(self):
         self._buffer = bytearray()
@@ -88,6 +89,11 @@ class Lds01Parser:
             position += PACKET_SIZE
         del buffer[:position]
         return revolutions
+
+    @property
+    def buffered(self) -> int:
+        """Bytes held for the next feed: at most a packet and the two bytes that confirm it."""
+        return len(self._buffer)
 
     @staticmethod
     def _framing_confirmed(buffer, position, index) -> Optional[bool]:

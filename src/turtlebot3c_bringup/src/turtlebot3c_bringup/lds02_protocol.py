@@ -36,6 +36,9 @@ OFFSET_X = 5.9
 OFFSET_Y = -20.14
 SLOPE_Y = 0.11923
 SAMPLE_RATE = 2300.0  # points per second, bounds a packet's plausible angular span
+# A revolution takes 0.1-0.2 s; one whose angle has not wrapped after two seconds of points (a stalled
+# motor, a stuck angle, a stream crafted so) is no scan: its points are dropped, so memory stays bounded.
+MAX_REVOLUTION_POINTS = int(2 * SAMPLE_RATE)
 
 
 def _crc8_table(polynomial):
@@ -108,7 +111,9 @@ def packet_points(packet: Packet) -> List[Point]:
 
 class Lds02Parser:
     """Feed it bytes as they come; it returns the completed revolutions (lists of Points), plus the
-    motor speed of the last packet. Never raises on data."""
+    motor speed of the last packet. Never raises on data, and holds at most one packet's bytes and
+    MAX_REVOLUTION_POINTS points between feeds (`overlong_revolutions` counts the revolutions dropped
+    for having more)."""
 
     def __init__(self):
         self._buffer = bytearray()
@@ -119,6 +124,7 @@ class Lds02Parser:
         self.crc_errors = 0
         self.implausible_packets = 0
         self.packets_accepted = 0
+        self.overlong_revolutions = 0
 
     def feed(self, data: bytes) -> List[List[Point]]:
         self._buffer.extend(data)
@@ -153,11 +159,19 @@ class Lds02Parser:
         """The points of the revolution under way (a copy)."""
         return list(self._points)
 
+    @property
+    def buffered(self) -> int:
+        """Bytes held for the next feed: less than a packet."""
+        return len(self._buffer)
+
     def _add(self, points):
         done = []
         for point in points:
             if self._last_angle is not None and point.angle < self._last_angle - 180.0:
                 done.append(self._points)
+                self._points = []
+            elif len(self._points) >= MAX_REVOLUTION_POINTS:
+                self.overlong_revolutions += 1
                 self._points = []
             self._points.append(point)
             self._last_angle = point.angle

@@ -145,6 +145,7 @@ class Lds02:
     def counters(self) -> Dict[str, int]:
         return {"bytes discarded": self.parser.bytes_discarded, "packets": self.parser.packets_accepted,
                 "crc errors": self.parser.crc_errors, "implausible packets": self.parser.implausible_packets,
+                "overlong revolutions dropped": self.parser.overlong_revolutions,
                 "revolutions dropped": self.dropped_revolutions}
 
 
