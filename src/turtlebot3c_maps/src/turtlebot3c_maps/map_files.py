@@ -338,14 +338,14 @@ def parse_map_description(content, path):
     if not isinstance(origin, (list, tuple)) or len(origin) != 3 or not all(_finite_number(v) for v in origin):
         raise MapFileError(f"map file {path}: origin must be [x, y, yaw] numbers, got {shown(origin)}")
     negate = document["negate"]
-    if isinstance(negate, bool) or not isinstance(negate, int):
+    if isinstance(negate, bool) or not isinstance(negate, int) or negate not in (0, 1):
         raise MapFileError(f"map file {path}: negate must be an integer (0 or 1), got {shown(negate)}")
     mode = document.get("mode", "trinary")
     if mode not in MODES:
         raise MapFileError("map file {}: mode {} is not one of {}".format(path, shown(mode), ", ".join(MODES)))
     return {
         "image": image, "resolution": resolution, "origin": tuple(float(v) for v in origin),
-        "negate": 1 if negate else 0,  # map_server negates on any non-zero value
+        "negate": negate,
         "occupied_thresh": number("occupied_thresh"), "free_thresh": number("free_thresh"), "mode": mode,
     }
 
