@@ -239,7 +239,8 @@ def _run(command, output):
                 _, status, usage = os.wait4(process.pid, 0)
                 break
             time.sleep(0.05)
-    process.returncode = os.waitstatus_to_exitcode(status)
+    # subprocess's convention (minus the signal), by hand: os.waitstatus_to_exitcode is 3.9's.
+    process.returncode = -os.WTERMSIG(status) if os.WIFSIGNALED(status) else os.WEXITSTATUS(status)
     wall = time.monotonic() - started
     if process.returncode != 0:
         tail = output.read_text(errors="replace").strip().splitlines()[-3:]
