@@ -1,7 +1,58 @@
-"""Fixtures shared by every test: the built workspace's environment and a roscore per module."""
+"""Fixtures shared by every test: the built workspace's environment and a roscore per module; and the
+split of the suite into the tests that need a ROS master and those that need none (`--lane`)."""
+import subprocess
+import sys
+from pathlib import Path
+
 import pytest
 
 from testkit import ros_harness
+
+# A test needs a ROS master when it asks for one of these fixtures, is marked `needs_master` (one
+# that starts its master by itself), or tests the snap through snapsim (the snap's own roscore app).
+MASTER_FIXTURES = {"ros_master", "make_master"}
+SNAP_TESTS = Path(__file__).resolve().parent / "snap"
+# Runs the maps app as uid 65534, who must be able to reach the interpreter (see needs_a_shared_python).
+AS_ANOTHER_USER = {"tests/ros/test_maps_store.py::test_command_line_lists_as_json_and_refuses_changes_without_root"}
+
+
+def pytest_addoption(parser):
+    parser.addoption(
+        "--lane", choices=("all", "core20", "master"), default="all",
+        help="core20: only the tests that need no ROS master (tools/core20-lane runs them on Python 3.8); "
+             "master: only those that need one; all (default): every test")
+
+
+def needs_master(item):
+    return bool(MASTER_FIXTURES & set(getattr(item, "fixturenames", ()))
+                or item.get_closest_marker("needs_master")
+                or SNAP_TESTS in Path(str(item.fspath)).parents)
+
+
+def pytest_collection_modifyitems(config, items):
+    lane = config.getoption("--lane")
+    if lane == "all":
+        return
+    keep = [item for item in items if needs_master(item) == (lane == "master")]
+    config.hook.pytest_deselected(items=[item for item in items if item not in keep])
+    items[:] = keep
+
+
+def needs_a_shared_python():
+    """Why the tests that run our Python as another user cannot run here, or None if they can: a
+    Python 3.8 under /root (pyenv's) is out of reach of uid 65534."""
+    probe = subprocess.run(["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", sys.executable,
+                            "-c", ""], capture_output=True, check=False)
+    if probe.returncode == 0:
+        return None
+    return f"uid 65534 cannot run {sys.executable} (an interpreter under a private folder)"
+
+
+def pytest_runtest_setup(item):
+    if item.config.getoption("--lane") == "core20" and item.nodeid in AS_ANOTHER_USER:
+        reason = needs_a_shared_python()
+        if reason:
+            pytest.skip(reason)
 
 
 @pytest.fixture(scope="session")
