@@ -17,7 +17,7 @@ from turtlebot3c_sim.world import load_world
 from turtlebot3c_slam.occupancy_grid import LogOddsGrid, trace_scan
 from turtlebot3c_slam.pose_graph import PoseGraph
 from turtlebot3c_slam.scan_matcher import GridMatcher, likelihood_field
-from turtlebot3c_slam.slam import Slam, SlamConfig, check_slam_method
+from turtlebot3c_slam.slam import RedrawBudget, Slam, SlamConfig, check_slam_method
 from turtlebot3c_slam.slam_messages import mount_from_transform
 from turtlebot3c_slam.slam_scan import ScanGeometry, scan_rays
 
@@ -173,6 +173,32 @@ def test_a_scan_that_matches_poorly_never_becomes_a_keyframe_unless_poor_ones_go
     assert slam.poor_matches == 1 and len(slam.keyframes) == keyframes
     slam.add_scan(4.0, garbage, geometry, (0.6, 0.0, 0.0))
     assert slam.poor_matches == 2 and len(slam.keyframes) == keyframes + 1  # lost for good: map on
+
+
+def test_the_local_map_covers_the_last_keyframes_not_the_whole_path():
+    """A long corridor must not leave the fine tracking grid as long as the corridor (gigabytes
+    on a kilometre of real corridor): it holds the last local_map_keyframes, so its size too."""
+    geometry = ScanGeometry(-math.pi / 2, math.pi / 179, 180, 0.1, 10.0)
+    angles = -math.pi / 2 + np.arange(180) * math.pi / 179
+    with np.errstate(divide="ignore"):
+        ranges = np.where(np.sin(angles) != 0, np.abs(1.0 / np.sin(angles)), np.inf)  # walls at y = +-1
+    slam = Slam()
+    for step in range(240):  # 60 m along the corridor
+        slam.add_scan(float(step), ranges, geometry, (0.25 * step, 0.0, 0.0))
+    config = slam.config
+    growth = 2 * LogOddsGrid.GROWTH * config.match_resolution
+    span = config.local_map_keyframes * 0.25 + 2 * config.usable_range + growth
+    assert len(slam.keyframes) > 200
+    assert slam.local_grid.shape[1] * config.match_resolution < span < 40.0
+
+
+def test_a_long_redraw_of_the_map_is_followed_by_a_longer_pause_so_redraws_take_a_bounded_share():
+    budget = RedrawBudget(share=0.2)
+    assert budget.allows(0.0)
+    budget.spent(2.0, now=10.0)  # a 2 s redraw finished at t = 10 s
+    assert not budget.allows(17.9) and budget.allows(18.0)
+    budget.spent(0.1, now=18.1)
+    assert budget.allows(18.5)
 
 
 def cell_state(occupancy, x, y):

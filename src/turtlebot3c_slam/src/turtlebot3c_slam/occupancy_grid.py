@@ -134,12 +134,6 @@ class LogOddsGrid:
     def shape(self):
         return self.log_odds.shape
 
-    def clear(self):
-        self.log_odds[:] = 0.0
-        self.observations[:] = 0
-        self.hit_sums[:] = 0.0
-        self.hit_counts[:] = 0.0
-
     def _ensure(self, low, high):
         """Grow the arrays so lattice cells low..high (inclusive, (i, j)) are inside."""
         height, width = self.log_odds.shape

@@ -144,6 +144,24 @@ class MapRebuild:
         return self.grid
 
 
+class RedrawBudget:
+    """When the map may next be redrawn from every keyframe: a redraw that took `seconds` is
+    followed by at least seconds * (1 - share) / share without one, so redraws take at most
+    `share` of the time whatever the map's size. A floor of a few thousand keyframes takes
+    seconds to redraw, and loop closures come every few seconds there: redrawing after each
+    would leave no CPU to map with on a robot's small computer."""
+
+    def __init__(self, share=0.2):
+        self.share = share
+        self.next_allowed = -math.inf
+
+    def allows(self, now):
+        return now >= self.next_allowed
+
+    def spent(self, seconds, now):
+        self.next_allowed = now + seconds * (1.0 - self.share) / self.share
+
+
 class UnmatchedMotion:
     """Odometry's motion since the last scan that matched well: what its error grows with."""
 
@@ -338,6 +356,8 @@ class Slam:
         self.local_updates.append((index, update))
         if len(self.local_updates) > self.config.local_map_keyframes:
             self.local_grid.apply(self.local_updates.popleft()[1], sign=-1)
+            if index % self.config.local_map_keyframes == 0:
+                self._compact_local_map()
         if not self._global_dirty:
             self.global_grid.add_scan(rays, self.pose)
         self._local_version += 1
@@ -349,8 +369,17 @@ class Slam:
     def _information(sigma_xy, sigma_theta):
         return np.diag([1.0 / sigma_xy ** 2, 1.0 / sigma_xy ** 2, 1.0 / sigma_theta ** 2])
 
+    def _compact_local_map(self):
+        """The local map's array afresh from the keyframes it holds. Its array only grows, and a
+        long session would leave it as wide as the whole floor at the fine matching resolution:
+        gigabytes on a corridor a kilometre long, for the last few metres of keyframes."""
+        self.local_grid = self._new_grid(self.config.match_resolution)
+        for _, update in self.local_updates:
+            self.local_grid.apply(update)
+        self._local_version += 1
+
     def _rebuild_local_map(self):
-        self.local_grid.clear()
+        self.local_grid = self._new_grid(self.config.match_resolution)
         rebuilt = collections.deque()
         for index, _ in self.local_updates:
             update = self.local_grid.trace(self.keyframes[index].rays, tuple(self.graph.poses[index]))
