@@ -7,9 +7,11 @@ launch files run, and the commands its code runs. A missing key would fail on th
 extra one installs what nobody uses (a teleop-only install pulling in the OpenCR stack).
 
 snapcraft's catkin plugin runs rosdep on each package.xml when it builds the snap; a key that
-does not resolve there fails the build. This check uses the offline copy of that database in
-../shared/rosdistro: a key resolves if it is a package of this workspace, a package released
-for noetic, or a rosdep key with a rule for ubuntu focal.
+does not resolve there fails the build. This check reads the part of that database our
+package.xml files use, kept in tools/data/rosdistro (refresh_check_data.py cuts it from a full
+snapshot): a key resolves if it is a package of this workspace, a package released for noetic,
+or a rosdep key with a rule for ubuntu focal. The data is kept in the repository so that the
+check runs in any clone; without it the check fails.
 
 Usage: check_rosdep.py SRC_DIR [--rosdistro DIR]
 """
@@ -93,20 +95,24 @@ def dependency_mismatches(packages, src):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("src", type=Path)
-    default_rosdistro = Path(__file__).resolve().parent.parent.parent / "shared" / "rosdistro"
+    default_rosdistro = Path(__file__).resolve().parent / "data" / "rosdistro"
     parser.add_argument("--rosdistro", type=Path, default=default_rosdistro)
     args = parser.parse_args(argv)
 
+    distribution = args.rosdistro / "noetic" / "distribution.yaml"
+    rosdep_files = sorted((args.rosdistro / "rosdep").glob("*.yaml"))
+    if not distribution.is_file() or not rosdep_files:
+        print(f"check_rosdep: no rosdep data at {args.rosdistro} (noetic/distribution.yaml and rosdep/*.yaml; "
+              "tools/refresh_check_data.py writes them)", file=sys.stderr)
+        return 1
     packages = list(find_packages(str(args.src)).values())
     problems = dependency_mismatches(packages, args.src)
-    if args.rosdistro.is_dir():
-        resolvable = {package.name for package in packages}
-        resolvable |= released_noetic_packages(args.rosdistro / "noetic" / "distribution.yaml")
-        resolvable |= rosdep_keys_for_focal(sorted((args.rosdistro / "rosdep").glob("*.yaml")))
-        problems += [(name, f"dependency '{key}' does not resolve with rosdep for noetic on focal")
-                     for name, key in unresolved_dependencies(packages, resolvable)]
-    else:
-        print(f"check_rosdep: SKIPPED resolution: no rosdep database at {args.rosdistro}")
+    resolvable = {package.name for package in packages}
+    resolvable |= released_noetic_packages(distribution)
+    resolvable |= rosdep_keys_for_focal(rosdep_files)
+    problems += [(name, f"dependency '{key}' does not resolve with rosdep for noetic on focal in {args.rosdistro}"
+                        " (a new key? tools/refresh_check_data.py looks it up in the full snapshot)")
+                 for name, key in unresolved_dependencies(packages, resolvable)]
     for package_name, message in problems:
         print(f"check_rosdep: {package_name}: {message}", file=sys.stderr)
     if not problems:

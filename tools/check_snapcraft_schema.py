@@ -1,6 +1,9 @@
 #!/usr/bin/env python3
 """Validate snap/snapcraft.yaml against the JSON schema snapcraft 7.x uses for core20.
 
+The schema is kept in the repository (tools/data/snapcraft-core20.json, from snapcraft 7.5.9;
+tools/refresh_check_data.py copies it), so the check runs in any clone; without it, it fails.
+
 Usage: check_snapcraft_schema.py SNAPCRAFT_YAML [--schema FILE]
 """
 import argparse
@@ -20,13 +23,17 @@ def schema_errors(document, schema):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("snapcraft_yaml", type=Path)
-    default_schema = Path(__file__).resolve().parent.parent.parent / "shared" / "snapcraft" / "snapcraft.json"
+    default_schema = Path(__file__).resolve().parent / "data" / "snapcraft-core20.json"
     parser.add_argument("--schema", type=Path, default=default_schema)
     args = parser.parse_args(argv)
 
     if not args.schema.is_file():
-        print(f"check_snapcraft_schema: SKIPPED: no schema at {args.schema}")
-        return 0
+        print(f"check_snapcraft_schema: no schema at {args.schema} (tools/refresh_check_data.py writes it)",
+              file=sys.stderr)
+        return 1
+    if not args.snapcraft_yaml.is_file():
+        print(f"check_snapcraft_schema: no {args.snapcraft_yaml}", file=sys.stderr)
+        return 1
     errors = schema_errors(yaml.safe_load(args.snapcraft_yaml.read_text()), json.loads(args.schema.read_text()))
     for error in errors:
         where = "/".join(str(part) for part in error.absolute_path) or "(top level)"
