@@ -36,8 +36,10 @@ def link_status(driver, port: str, baud: int) -> Status:
             values["firmware found"] = driver.other_firmware.describe()
         if driver.fix:
             values[TO_DO] = driver.fix
-        return Status(ERROR, "turtlebot3c: OpenCR link",
-                      f"not connected to {port}: {driver.problem or stats.last_error}", values)
+        # The wrong firmware's message names the port already.
+        message = driver.problem if driver.other_firmware is not None else \
+            f"not connected to {port}: {driver.problem or stats.last_error}"
+        return Status(ERROR, "turtlebot3c: OpenCR link", message, values)
     return Status(OK, "turtlebot3c: OpenCR link", "connected", values)
 
 
