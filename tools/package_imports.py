@@ -7,6 +7,8 @@ package_graph.py. Plain text and ast only: needs neither ROS nor a build.
 import ast
 import re
 import sys
+import sysconfig
+from pathlib import Path
 
 # Imports that are rosdep keys of another name (the rest of the third-party imports are ROS
 # packages, named as they are imported).
@@ -17,7 +19,21 @@ ROSDEP_KEY_OF_MODULE = {
     "serial": "python3-serial",
     "rosbags": "python3-rosbags-pip",
 }
-STANDARD_LIBRARY = set(getattr(sys, "stdlib_module_names", ())) | {"__future__"}
+
+
+def standard_library():
+    """Top-level names of the standard library's modules."""
+    if hasattr(sys, "stdlib_module_names"):  # Python 3.10 on
+        return set(sys.stdlib_module_names)
+    # Python 3.8 (the core20 lane runs the check tools' tests): what the standard library's
+    # folders hold, and the modules built into the interpreter.
+    stdlib = Path(sysconfig.get_paths()["stdlib"])
+    folders = [stdlib, stdlib / "lib-dynload"]
+    return set(sys.builtin_module_names) | {entry.name.split(".")[0] for folder in folders if folder.is_dir()
+                                            for entry in folder.iterdir()}
+
+
+STANDARD_LIBRARY = standard_library() | {"__future__"}
 LAUNCH_PACKAGE = re.compile(r'pkg="([A-Za-z0-9_]+)"|\$\(find ([A-Za-z0-9_]+)\)')
 LAUNCH_XACRO = re.compile(r'command="xacro\b')
 # Commands the code runs by name (the first word of an argv list), and the package each comes from.
