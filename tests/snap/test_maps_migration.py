@@ -56,8 +56,10 @@ def save_with_old_revision(system, old, side, bag):
 
 
 def contents(folder):
+    """The maps' images and bags (not the YAMLs, which name their images, nor hidden files such as the lock)."""
     return {path.name: hashlib.sha256(path.read_bytes()).hexdigest()
-            for path in folder.iterdir() if path.is_file() and not path.is_symlink() and path.suffix != ".yaml"}
+            for path in folder.iterdir() if path.is_file() and not path.is_symlink() and path.suffix != ".yaml"
+            and not path.name.startswith(".")}
 
 
 def test_refresh_moves_every_map_its_image_and_bag_and_keeps_the_chosen_map_current(system):
