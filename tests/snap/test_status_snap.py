@@ -229,8 +229,8 @@ def test_an_unplugged_opencr_says_what_to_plug_or_set(healthy):
         waited, code, output = healthy.wait_for_line("OpenCR", "no OpenCR at", timeout=30)
         healthy.show("OpenCR unplugged", output, code)
         assert code == 1
-        assert "-> plug the OpenCR in, or set its port: sudo snap set turtlebot3c opencr-port=/dev/..." in \
-            healthy.line(output, "OpenCR")
+        assert re.fullmatch("\u2718 OpenCR +no OpenCR at /dev/pts/[0-9]+ -> plug the OpenCR in, or set its port: "
+                            "sudo snap set turtlebot3c opencr-port=/dev/...", healthy.line(output, "OpenCR"))
     finally:
         healthy.fake("replug opencr")
 

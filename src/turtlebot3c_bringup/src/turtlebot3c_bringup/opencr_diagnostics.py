@@ -36,9 +36,8 @@ def link_status(driver, port: str, baud: int) -> Status:
             values["firmware found"] = driver.other_firmware.describe()
         if driver.fix:
             values[TO_DO] = driver.fix
-        # The wrong firmware's message names the port already.
-        message = driver.problem if driver.other_firmware is not None else \
-            f"not connected to {port}: {driver.problem or stats.last_error}"
+        problem = driver.problem or stats.last_error
+        message = problem if port in problem else f"not connected to {port}: {problem}"  # the port once
         return Status(ERROR, "turtlebot3c: OpenCR link", message, values)
     return Status(OK, "turtlebot3c: OpenCR link", "connected", values)
 
