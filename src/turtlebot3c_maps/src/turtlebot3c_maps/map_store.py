@@ -144,10 +144,7 @@ class MapStore:
         """MapInfo of one map, from its YAML and its image's header (never the whole image)."""
         self.require(name)
         image = self.path(name, ".pgm")
-        try:
-            modified = os.lstat(image).st_mtime
-        except OSError:
-            modified = os.lstat(self.path(name)).st_mtime
+        modified = _modified(image, self.path(name))
         has_bag = os.path.lexists(self.path(name, ".bag")) or os.path.lexists(self.path(name, ".bag.active"))
         try:
             description = self.description(name)
@@ -362,6 +359,16 @@ def write_preview(occupancy_map, path, scale=1):
 def _plain_file_name(name):
     return isinstance(name, str) and name not in ("", ".", "..") and "/" not in name and "\\" not in name \
         and "\0" not in name
+
+
+def _modified(*paths):
+    """The modification time of the first of `paths` that exists (0 if none does: removed meanwhile)."""
+    for path in paths:
+        try:
+            return os.lstat(path).st_mtime
+        except OSError:
+            continue
+    return 0.0
 
 
 def _is_regular_file(path):
