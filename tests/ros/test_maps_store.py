@@ -238,3 +238,17 @@ def test_command_line_lists_as_json_and_refuses_changes_without_root(tmp_path):
     assert unprivileged.returncode == 1
     assert "remove changes the robot's maps and needs root: sudo turtlebot3c.maps" in unprivileged.stderr
     assert (tmp_path / "maps" / "kitchen.yaml").exists()
+
+
+def test_command_line_refuses_hostile_requests_in_one_line_and_lists_past_a_hostile_file(tmp_path):
+    # Issue #18 items 7 and 8: a preview too large, a YAML nested too deep; a line each, no traceback.
+    (tmp_path / "maps").mkdir()
+    saved(tmp_path / "maps", "kitchen")
+    (tmp_path / "maps" / "deep.yaml").write_text("image: " + "[" * 20000 + "]" * 20000 + "\n")
+    listing = run_tool("--folder", tmp_path / "maps", "list")
+    assert listing.returncode == 0 and "Traceback" not in listing.stderr
+    assert "unreadable: deep: map file" in listing.stdout and "nesting deeper than 8 levels" in listing.stdout
+    shown = run_tool("--folder", tmp_path / "maps", "show", "kitchen", "-o", tmp_path / "k.png", "--scale", "100000")
+    assert shown.returncode == 1 and len(shown.stderr.splitlines()) == 1
+    assert "show refused: --scale 100000 would make a preview of 600000 x 400000 pixels" in shown.stderr
+    assert not (tmp_path / "k.png").exists()
