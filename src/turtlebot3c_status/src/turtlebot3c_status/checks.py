@@ -110,7 +110,7 @@ def raw_usb_part(snap: SnapFacts, simulation: bool) -> Part:
     if simulation:
         return Part("raw_usb", "raw-usb", True, "not needed (simulation=true)")
     if snap.raw_usb is None:
-        return Part("raw_usb", "raw-usb", False, "cannot tell whether it is connected", RAW_USB_FIX)
+        return Part("raw_usb", "raw-usb", False, "not checked: snapctl did not answer", "see the services line")
     if not snap.raw_usb:
         return Part("raw_usb", "raw-usb", False, "not connected: the drivers may not open the serial ports",
                     RAW_USB_FIX)
