@@ -21,7 +21,8 @@ new (``O_EXCL``) and given its final name by link(2), which never replaces anyth
 read from there must be a regular file within the limits (``MAX_BAG_BYTES`` and map_files'
 ``MAX_*``) before it is read; an import is staged in a private folder of the store's own.
 
-Public API: ``MapStore(folder)`` with ``maps()``, ``get(name)``, ``current_name()``,
+Public API: ``MapStore(folder)`` with ``maps()``, ``get(name)``, ``load(name)``,
+``description(name)`` (its YAML's keys, refused unless its image is NAME.pgm), ``current_name()``,
 ``set_current(name)``, ``rename(old, new)``, ``remove(name)``, ``export(name, folder)``,
 ``import_map(path, name=None)``; ``write_preview(occupancy_map, path)`` and
 ``encode_png(pixels)``; ``check_name(name)``; ``MapStoreError`` (a ValueError whose
