@@ -108,8 +108,13 @@ def main(argv=None):
     packages = list(find_packages(str(args.src)).values())
     problems = dependency_mismatches(packages, args.src)
     resolvable = {package.name for package in packages}
-    resolvable |= released_noetic_packages(distribution)
-    resolvable |= rosdep_keys_for_focal(rosdep_files)
+    try:
+        resolvable |= released_noetic_packages(distribution)
+        resolvable |= rosdep_keys_for_focal(rosdep_files)
+    except (yaml.YAMLError, KeyError, AttributeError, TypeError) as error:
+        print(f"check_rosdep: cannot read the rosdep data at {args.rosdistro}: {' '.join(str(error).split())}",
+              file=sys.stderr)
+        return 1
     problems += [(name, f"dependency '{key}' does not resolve with rosdep for noetic on focal in {args.rosdistro}"
                         " (a new key? tools/refresh_check_data.py looks it up in the full snapshot)")
                  for name, key in unresolved_dependencies(packages, resolvable)]

@@ -34,7 +34,13 @@ def main(argv=None):
     if not args.snapcraft_yaml.is_file():
         print(f"check_snapcraft_schema: no {args.snapcraft_yaml}", file=sys.stderr)
         return 1
-    errors = schema_errors(yaml.safe_load(args.snapcraft_yaml.read_text()), json.loads(args.schema.read_text()))
+    try:
+        document = yaml.safe_load(args.snapcraft_yaml.read_text())
+        schema = json.loads(args.schema.read_text())
+    except (yaml.YAMLError, ValueError) as error:
+        print(f"check_snapcraft_schema: cannot read its inputs: {' '.join(str(error).split())}", file=sys.stderr)
+        return 1
+    errors = schema_errors(document, schema)
     for error in errors:
         where = "/".join(str(part) for part in error.absolute_path) or "(top level)"
         print(f"check_snapcraft_schema: {where}: {error.message}", file=sys.stderr)
