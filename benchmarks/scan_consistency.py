@@ -19,64 +19,38 @@ the reference:
 import math
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from turtlebot3c_common.se2 import relative, transform_points, wrap_angle
 from turtlebot3c_sim.evaluation import contradicts, relative_pose_errors
+from turtlebot3c_slam.line_icp import LineCloud, align
 from turtlebot3c_slam.pose_graph import PoseGraph
 
 MAX_RANGE = 20.0        # m: farther echoes are too coarse in angle to fit lines to
-NORMAL_NEIGHBOURS = 5   # points a local line is fitted through
-PAIR_DISTANCE = 0.2     # m: a point farther from the other scan has no partner there
 NEIGHBOUR_SCANS = 3     # consistency: each scan against the next three
 FLOOR_RADIUS = 3.0      # m: scans this close are matched for the floor...
 FLOOR_TURN = 1.0        # rad: ...unless they look in directions this different (little overlap)
 FLOOR_SPACING = 0.5     # m: a dense log is thinned to scans this far apart for the floor (cost)
-ICP_ITERATIONS = 30
-ICP_HUBER = 0.03        # m
 ICP_SIGMA = 0.01        # m, a SICK's range noise: scales each match's information
-ICP_MIN_PAIRS = 50
 REFERENCE_INFORMATION = np.diag([1.0, 1.0, 100.0])  # 1 m, 0.1 rad: weak next to any ICP match
 
 
 class ScanSet:
-    """A log's scans as points with a k-d tree and a line normal per point, each in its robot frame."""
+    """A log's scans as LineClouds (points, k-d tree, line normals), each in its robot frame."""
 
     def __init__(self, log):
         angles = log.angle_min + np.arange(log.beams) * log.angle_increment
         directions = np.column_stack((np.cos(angles), np.sin(angles)))
-        self.points, self.trees, self.normals = [], [], []
+        self.clouds = []
         for ranges in log.ranges:
             usable = np.isfinite(ranges) & (ranges > 0.05) & (ranges < MAX_RANGE)
-            points = directions[usable] * ranges[usable, None]
-            tree = cKDTree(points)
-            self.points.append(points)
-            self.trees.append(tree)
-            self.normals.append(_normals(points, tree))
+            self.clouds.append(LineCloud(directions[usable] * ranges[usable, None]))
 
     def __len__(self):
-        return len(self.points)
+        return len(self.clouds)
 
     def pairs(self, i, j, pose):
-        """Scan j's points laid into scan i's frame at `pose` (j seen from i), their partners' normals
-        and signed point-to-line distances; None when too few points have a partner."""
-        laid = transform_points(pose, self.points[j])
-        distance, partner = self.trees[i].query(laid)
-        near = distance < PAIR_DISTANCE
-        if near.sum() < ICP_MIN_PAIRS:
-            return None
-        normals = self.normals[i][partner[near]]
-        residuals = np.sum((laid[near] - self.points[i][partner[near]]) * normals, axis=1)
-        return near, normals, residuals
-
-
-def _normals(points, tree):
-    if len(points) < NORMAL_NEIGHBOURS:
-        return np.zeros_like(points)
-    _, neighbours = tree.query(points, k=NORMAL_NEIGHBOURS)
-    centred = points[neighbours] - points[neighbours].mean(axis=1, keepdims=True)
-    _, vectors = np.linalg.eigh(np.einsum("nki,nkj->nij", centred, centred))
-    return vectors[:, :, 0]  # the direction of least spread: across the line
+        """Scan j laid into scan i's frame at `pose` (j seen from i): LineCloud.pairs."""
+        return self.clouds[i].pairs(transform_points(pose, self.clouds[j].points))
 
 
 def consistency(scans, trajectory):
@@ -94,26 +68,13 @@ def consistency(scans, trajectory):
 def match(scans, i, j, start):
     """Point-to-line ICP of scan j against scan i from `start`: (pose of j seen from i, 3x3
     information in the pose's frame), or None when they do not overlap enough."""
-    pose = np.array(start, dtype=np.float64)
-    hessian = None
-    for _ in range(ICP_ITERATIONS):
-        paired = scans.pairs(i, j, tuple(pose))
-        if paired is None:
-            return None
-        near, normals, residuals = paired
-        points = scans.points[j][near]
-        cos, sin = math.cos(pose[2]), math.sin(pose[2])
-        turned = np.column_stack((-sin * points[:, 0] - cos * points[:, 1], cos * points[:, 0] - sin * points[:, 1]))
-        jacobian = np.column_stack((normals, np.sum(normals * turned, axis=1)))
-        weights = np.minimum(1.0, ICP_HUBER / np.maximum(np.abs(residuals), 1e-12))
-        hessian = jacobian.T @ (jacobian * weights[:, None])
-        step = -np.linalg.solve(hessian + 1e-6 * np.eye(3), jacobian.T @ (residuals * weights))
-        pose += step
-        if np.abs(step).max() < 1e-6:
-            break
+    aligned = align(scans.clouds[i], scans.clouds[j].points, start)
+    if aligned is None:
+        return None
+    pose, hessian = aligned
     cos, sin = math.cos(pose[2]), math.sin(pose[2])
     to_pose_frame = np.array([[cos, -sin, 0.0], [sin, cos, 0.0], [0.0, 0.0, 1.0]])
-    return tuple(pose), to_pose_frame.T @ hessian @ to_pose_frame / ICP_SIGMA ** 2
+    return pose, to_pose_frame.T @ hessian @ to_pose_frame / ICP_SIGMA ** 2
 
 
 def most_consistent_trajectory(scans, reference):

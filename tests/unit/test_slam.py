@@ -17,7 +17,7 @@ from turtlebot3c_sim.world import load_world
 from turtlebot3c_slam.occupancy_grid import LogOddsGrid, trace_scan
 from turtlebot3c_slam.pose_graph import PoseGraph
 from turtlebot3c_slam.scan_matcher import GridMatcher, likelihood_field
-from turtlebot3c_slam.slam import RedrawBudget, Slam, SlamConfig, check_slam_method
+from turtlebot3c_slam.slam import Keyframe, LoopClosure, RedrawBudget, Slam, SlamConfig, check_slam_method
 from turtlebot3c_slam.slam_messages import mount_from_transform
 from turtlebot3c_slam.slam_scan import ScanGeometry, scan_rays
 
@@ -343,6 +343,33 @@ def test_loop_edge_pulls_a_drifted_square_back_together():
 
 
 # --- configuration ----------------------------------------------------------------------------
+
+
+def room_corner_points(pose):
+    """Points every 2.5 cm on a room's corner walls (x = 2, y = 1.5), seen from `pose`."""
+    along = np.arange(-1.5, 1.5, 0.025)
+    walls = np.concatenate((np.column_stack((np.full_like(along, 2.0), along)),
+                            np.column_stack((along + 0.5, np.full_like(along, 1.5)))))
+    return transform_points(inverse(pose), walls)
+
+
+def test_a_loop_closure_the_two_keyframes_own_scans_contradict_is_refused():
+    """A match of the recent scans against the old map can be right while the edge it makes to
+    the old keyframe is wrong, if that keyframe sits wrong among its neighbours."""
+    slam = Slam()
+    old_pose, new_pose = (0.0, 0.0, 0.0), (0.3, -0.2, 0.4)
+    slam.keyframes = [Keyframe(0.0, None, room_corner_points(old_pose), 0.0),
+                      Keyframe(1.0, None, room_corner_points(new_pose), 10.0)]
+    truth = relative(old_pose, new_pose)
+
+    def closure(measured):
+        return LoopClosure(0, 1, measured, 0.9, (0.0, 0.0, 0.0), new_pose)
+
+    assert slam._keyframes_agree(closure(truth))
+    assert not slam._keyframes_agree(closure(compose(truth, (0.4, 0.0, 0.0))))
+    assert not slam._keyframes_agree(closure(compose(truth, (0.0, 0.0, 0.05))))
+    slam.keyframes[1].points = slam.keyframes[1].points[:10]  # too little overlap to tell: passes
+    assert slam._keyframes_agree(closure(compose(truth, (0.4, 0.0, 0.0))))
 
 
 def test_unknown_or_bad_slam_parameters_are_rejected_with_their_names():

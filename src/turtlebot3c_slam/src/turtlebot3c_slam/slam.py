@@ -24,7 +24,11 @@ How it works:
 - *Loop closure*: a new keyframe near an old part of the trajectory (more than
   `loop_min_travel` metres of path ago, within `loop_search_radius`) is matched, with the
   last few keyframes' points, against a submap built from the old keyframes around there,
-  over a wide window (branch and bound keeps that fast). A good match is only a candidate:
+  over a wide window (branch and bound keeps that fast). The closure's edge joins the newest
+  keyframe to the old one nearest: a good match must also put those two where their own
+  points, aligned directly (point-to-line ICP, line_icp), agree within `loop_check_*`, for an
+  old keyframe that sits a little wrong among its neighbours would make the edge wrong by as
+  much though the match was right. A good match is even then only a candidate:
   corridors that look alike fool one match, so a closure is taken when a second one, within
   `loop_pending_keyframes`, moves the map the same way; both become robust edges and the
   graph is optimised, and an accepted closure the optimised graph still contradicts by more
@@ -39,6 +43,7 @@ import numpy as np
 
 from turtlebot3c_common.se2 import compose, distance, inverse, relative, transform_points, wrap_angle
 
+from .line_icp import LineCloud, align
 from .occupancy_grid import LogOddsGrid, hit_cells
 from .pose_graph import PoseGraph
 from .scan_matcher import GridMatcher, likelihood_field
@@ -87,6 +92,8 @@ class SlamConfig:
         ("loop_window_xy", 1.0),          # m, loop-closure search half-width
         ("loop_window_theta", 0.35),      # rad
         ("loop_min_score", 0.55),         # mean likelihood needed to consider a closure
+        ("loop_check_xy", 0.1),           # m: the two keyframes' own scans must agree this well...
+        ("loop_check_theta", 0.02),       # rad: ...with a closure's relative pose between them
         ("loop_agreement_xy", 0.15),      # m: two closures agree when they move the map alike
         ("loop_agreement_theta", 0.03),   # rad
         ("loop_pending_keyframes", 10),   # keyframes a closure waits for one that agrees
@@ -458,7 +465,20 @@ class Slam:
         pose = matcher.refine(cloud, result.pose).pose
         closure = LoopClosure(candidate, newest, relative(tuple(self.graph.poses[candidate]), pose), result.score,
                               compose(pose, inverse(current)), current)
-        self._consider_loop_closure(closure)
+        if self._keyframes_agree(closure):
+            self._consider_loop_closure(closure)
+
+    def _keyframes_agree(self, closure):
+        """Whether the two keyframes' own points, aligned from the closure's relative pose, stay
+        within loop_check_* of it (freiburg-101: a match 0.55 m off at the old keyframe, which
+        its neighbours had placed right). Keyframes that overlap too little to tell pass."""
+        old, newest = self.keyframes[closure.old], self.keyframes[closure.newest]
+        aligned = align(LineCloud(old.points), newest.points, closure.measured)
+        if aligned is None:
+            return True
+        pose = aligned[0]
+        return distance(pose, closure.measured) <= self.config.loop_check_xy and \
+            abs(wrap_angle(pose[2] - closure.measured[2])) <= self.config.loop_check_theta
 
     def _consider_loop_closure(self, closure):
         """Close loops only on closures that agree: one match can be fooled by corridors that look
