@@ -35,6 +35,7 @@ from turtlebot3c_common.master_restart import MasterQuery
 
 SETTLE = 5.0  # s the master must stay the same once every node is registered
 REGISTER_WAIT = 120.0  # s to wait for the nodes to register (a node that never does: check then)
+LAST_LOOK_WAIT = 30.0  # s for the master to answer the last look (the roscore app restarts it)
 CALLER = "/roslaunch_joining"
 
 
@@ -94,14 +95,16 @@ class StartWatch:
         deadline = time.monotonic() + REGISTER_WAIT
         master = master_at(uri)
         while time.monotonic() < deadline and not all(master.call("lookupNode", name) for name in names):
-            if self.changed(uri):
+            if self.changed(uri, master.identity()):
                 return
             time.sleep(0.5)
         time.sleep(SETTLE)
-        self.changed(uri)
+        # The last look must get an answer: a master that was killed is still starting again, or
+        # slow to answer on a loaded machine, and taking no answer for "the same master" would
+        # leave the nodes on a new master without the parameters.
+        self.changed(uri, settled_identity(uri, wait=LAST_LOOK_WAIT))
 
-    def changed(self, uri):
-        now = master_at(uri).identity()
+    def changed(self, uri, now):
         if now is None or now == self.master:
             return False
         self.restarted = (f"the ROS master at {uri} was restarted while this launch started (its parameters "
