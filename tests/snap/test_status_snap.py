@@ -95,6 +95,15 @@ class Robot:
     def fake(self, command):
         return send_command(self.control, command)
 
+    def replug_opencr(self):
+        """Plug the OpenCR back in and point opencr-port at it again. The fake board comes back on
+        a new pty behind the same link, where a robot's /dev/ttyACM0 stays the same name: left on
+        the old pty, the driver would reach whatever took that number next (another test's fake)."""
+        self.fake("replug opencr")
+        link = self.control.parent / "ttyACM0"
+        wait_until(link.exists, 30, "the replugged OpenCR never appeared")
+        self.system.snapsim("set", "turtlebot3c", f"opencr-port={os.path.realpath(link)}")
+
     def show(self, title, output, code, took=None):
         timing = f", {took:.1f} s" if took is not None else ""
         print(f"\n--- status: {title} (exit {code}{timing})\n{output}", end="")
@@ -126,6 +135,7 @@ def robot(ros_master):
 @pytest.fixture
 def healthy(robot):
     """The robot with every part working, as the test found it or after putting it back."""
+    robot.wait_for_line("OpenCR", r"^\u2714")
     robot.wait_for_line("battery", r"^\u2714")
     robot.wait_for_line("LIDAR", r"^\u2714 LIDAR\s+LDS-01: ")
     return robot
@@ -236,7 +246,7 @@ def test_an_unplugged_opencr_says_what_to_plug_or_set(healthy):
         assert re.fullmatch("\u2718 OpenCR +no OpenCR at /dev/pts/[0-9]+ -> plug the OpenCR in, or set its port: "
                             "sudo snap set turtlebot3c opencr-port=/dev/...", healthy.line(output, "OpenCR"))
     finally:
-        healthy.fake("replug opencr")
+        healthy.replug_opencr()
 
 
 def test_a_low_battery_warns_and_below_the_cutoff_says_the_motors_will_stop(healthy):
