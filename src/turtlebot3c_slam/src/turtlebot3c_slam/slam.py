@@ -470,8 +470,9 @@ class Slam:
 
     def _keyframes_agree(self, closure):
         """Whether the two keyframes' own points, aligned from the closure's relative pose, stay
-        within loop_check_* of it (freiburg-101: a match 0.55 m off at the old keyframe, which
-        its neighbours had placed right). Keyframes that overlap too little to tell pass."""
+        within loop_check_* of it. On freiburg-101 the old keyframe sat 0.55 m off among its
+        neighbours, and a right match made an edge to it wrong by as much. Keyframes that
+        overlap too little to tell pass."""
         old, newest = self.keyframes[closure.old], self.keyframes[closure.newest]
         aligned = align(LineCloud(old.points), newest.points, closure.measured)
         if aligned is None:
