@@ -1,16 +1,9 @@
 """The LIDAR's serial stream: bytes through, motor command on open, survives unplug/replug, quiet after close."""
+from testkit.recording_log import RecordingLog
 from testkit.ros_harness import wait_until
 from turtlebot3c_bringup.serial_stream import SerialStream
 from turtlebot3c_common.backoff import Backoff
 from turtlebot3c_sim.pty_link import PtyLink
-
-
-class Log:
-    def __init__(self):
-        self.lines = []
-
-    def __getattr__(self, level):
-        return lambda message: self.lines.append((level, message))
 
 
 def read_until(stream, expected, timeout=5):
@@ -25,7 +18,7 @@ def read_until(stream, expected, timeout=5):
 def test_stream_reopens_an_unplugged_device_and_reports_it_once(tmp_path):
     device = PtyLink(tmp_path / "ttyUSB0")
     device.plug()
-    log = Log()
+    log = RecordingLog()
     stream = SerialStream(str(device.path), 230400, on_open=b"b", on_close=b"e", log=log, backoff=Backoff(0.05, 0.2))
     try:
         stream.read()  # opens the port
@@ -53,7 +46,7 @@ def test_stream_reopens_an_unplugged_device_and_reports_it_once(tmp_path):
 
 
 def test_a_missing_device_is_retried_quietly(tmp_path):
-    log = Log()
+    log = RecordingLog()
     stream = SerialStream(str(tmp_path / "nothing"), 115200, log=log, backoff=Backoff(0.01, 0.05))
     for _ in range(20):
         assert stream.read() == b""

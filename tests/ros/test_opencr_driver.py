@@ -11,6 +11,7 @@ import time
 
 import pytest
 
+from testkit.recording_log import RecordingLog
 from testkit.ros_harness import wait_until
 from turtlebot3c_bringup import opencr_control_table as table
 from turtlebot3c_bringup.opencr_driver import (
@@ -80,20 +81,6 @@ class BoardServer:
         self.link.unplug()
 
 
-class Log:
-    def __init__(self):
-        self.lines = []
-
-    def info(self, message):
-        self.lines.append(("info", message))
-
-    def warning(self, message):
-        self.lines.append(("warning", message))
-
-    def error(self, message):
-        self.lines.append(("error", message))
-
-
 class Runner:
     """Runs driver.cycle() at 50 Hz in a thread, like the node's I/O loop, recording readings."""
 
@@ -125,7 +112,7 @@ def board(tmp_path):
 
 
 def start_driver(board, model="waffle_pi", **options):
-    log = Log()
+    log = RecordingLog()
     driver = OpenCRDriver(OpenCRLink(str(board.link.path)), get_model(model), log=log,
                           backoff=Backoff(0.05, 0.5), **options)
     return Runner(driver), log
@@ -243,7 +230,7 @@ def test_a_device_that_is_not_an_opencr_is_refused_with_the_reason(board):
 
 def test_a_missing_port_is_retried_until_the_board_appears(tmp_path):
     path = tmp_path / "ttyACM9"
-    log = Log()
+    log = RecordingLog()
     runner = Runner(OpenCRDriver(OpenCRLink(str(path)), get_model("burger"), log=log, backoff=Backoff(0.05, 0.3)))
     try:
         time.sleep(0.5)
@@ -262,7 +249,7 @@ def test_a_missing_port_is_retried_until_the_board_appears(tmp_path):
 def test_a_board_that_never_answers_gets_a_firmware_hint(tmp_path):
     silent = PtyLink(tmp_path / "ttyACM0")  # a port whose device says nothing, like the ROS 1 firmware at 1 Mbps
     silent.plug()
-    log = Log()
+    log = RecordingLog()
     runner = Runner(OpenCRDriver(OpenCRLink(str(silent.path)), get_model("burger"), log=log,
                                  backoff=Backoff(0.05, 0.3)))
     try:

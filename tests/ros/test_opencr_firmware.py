@@ -7,6 +7,7 @@ import time
 
 import pytest
 
+from testkit.recording_log import RecordingLog
 from testkit.ros_harness import wait_until
 from turtlebot3c_bringup.opencr_diagnostics import TO_DO, link_status
 from turtlebot3c_bringup.opencr_driver import OpenCRDriver
@@ -16,20 +17,6 @@ from turtlebot3c_common.backoff import Backoff
 from turtlebot3c_description.models import get_model
 from turtlebot3c_sim.fake_robot import RealTimeRobot
 from turtlebot3c_sim.simulation import NoiseConfig
-
-
-class Log:
-    def __init__(self):
-        self.lines = []
-
-    def info(self, message):
-        self.lines.append(("info", message))
-
-    def warning(self, message):
-        self.lines.append(("warning", message))
-
-    def error(self, message):
-        self.lines.append(("error", message))
 
 
 @pytest.fixture
@@ -53,7 +40,7 @@ def test_the_ros2_firmware_is_not_taken_for_rosserial(rosserial_board):
 
 
 def test_the_driver_names_the_rosserial_firmware_within_seconds_then_connects_once_flashed(rosserial_board):
-    log = Log()
+    log = RecordingLog()
     driver = OpenCRDriver(OpenCRLink(str(rosserial_board.devices["opencr"].link.path)), get_model("burger"),
                           log=log, backoff=Backoff(0.05, 0.3), firmware_probe=listen_for_rosserial)
     start = time.monotonic()
