@@ -366,6 +366,18 @@ def python():
 BENCH_INSIDE = "TURTLEBOT3C_BENCH_INSIDE"
 
 
+# What a benchmark measuring CPU time and figures needs: one core (BLAS would use both and count
+# their time), and numpy's sin/cos without AVX-512. numpy 1.22+ computes them there in SIMD
+# code whose last bit depends on how an array sits in memory, which differs from run to run;
+# a SLAM's discrete choices (a loop closure taken or not) amplify that into different maps from
+# the same inputs (freiburg-079: 194 to 206 closures). The snap's numpy 1.17 has no such code.
+# An older numpy ignores the variable.
+SINGLE_CORE_REPRODUCIBLE = {
+    "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
+    "NPY_DISABLE_CPU_FEATURES": "AVX512F AVX512CD AVX512_SKX AVX512_CLX AVX512_CNL AVX512_ICL",
+}
+
+
 def run_in_install_space(script, **extra_env):
     """For the benchmarks in benchmarks/: unless it already runs there, run `script` again, with the same
     arguments, in the install spaces' environment (rospy, our packages) plus `extra_env`."""
