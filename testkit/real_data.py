@@ -114,7 +114,7 @@ AMCL_PARAMS = dict(
 AMCL_START_OFFSET = (1.0, 0.5)  # m, rad off the first reference pose
 AMCL_INITIAL_STD = (0.75, 0.75, 0.5)  # m, m, rad: the initial pose's standard deviations (truth within ~1.3 sigma)
 AMCL_BOUND = (0.1, 3.0)         # m, deg: converged when within these and staying (see converged_scan)
-AMCL_HOLD_SCANS = 10            # the window over which "staying" is judged
+AMCL_HOLD_METRES = 10.0         # m of reference path: the window over which "staying" is judged
 
 
 def reference_map(log, resolution=AMCL_MAP_RESOLUTION, max_range=AMCL_MAP_RANGE):
@@ -216,7 +216,7 @@ def run_amcl(log, severity, seed=1, params=None, occupancy_map=None, offset=AMCL
     seconds = time.process_time() - started
     translation_errors = np.hypot(*(poses[:, :2] - log.reference[:, :2]).T)
     rotation_errors = np.degrees(np.abs(wrap_angle(poses[:, 2] - log.reference[:, 2])))
-    start = converged_scan(translation_errors, rotation_errors)
+    start = converged_scan(translation_errors, rotation_errors, log.travel())
     if start is None:
         translation = rotation = held = math.nan
     else:
@@ -227,18 +227,32 @@ def run_amcl(log, severity, seed=1, params=None, occupancy_map=None, offset=AMCL
                    len(poses) / seconds if seconds > 0 else math.inf, updates, localizer.filter.relocalizations)
 
 
-def converged_scan(translation_errors, rotation_errors, bound=AMCL_BOUND, hold=AMCL_HOLD_SCANS):
-    """The first scan k within `bound` (m, deg) from which the pose stays there: in every `hold`
-    consecutive scans from k to the end, at least half are within it. A scan or a few off by more
+def converged_scan(translation_errors, rotation_errors, travel=None, bound=AMCL_BOUND, hold=AMCL_HOLD_METRES):
+    """The first scan k within `bound` (m, deg) from which the pose stays there: in every window of
+    `hold` metres of travel (`travel`: m of path from the first scan to each; None: one metre per
+    scan) from k to the end, at least half the scans are within it. A scan or a few off by more
     (where the reference itself is off, or a wheel slipped a step) do not undo convergence; a
-    filter that loses the robot does. None when there is no such scan with `hold` scans after it."""
+    filter that loses the robot does. None when there is no such scan with `hold` metres after it.
+
+    The window is of travel, not of scans, so that "staying" means the same on a log with a scan
+    every 0.1 m (freiburg-079, 5 Hz) as on one with a scan every metre: ten scans were ten metres
+    on the one and a metre, two seconds, on the other, where a short excursion between two filter
+    updates undid convergence for good."""
     within = (np.asarray(translation_errors, dtype=float) < bound[0]) & \
         (np.asarray(rotation_errors, dtype=float) < bound[1])
-    if len(within) < hold:
+    count = len(within)
+    travel = np.arange(count, dtype=float) if travel is None else np.asarray(travel, dtype=float)
+    # The window from scan i: scans i .. end[i] - 1, end[i] the first scan `hold` metres on.
+    end = np.searchsorted(travel, travel + hold, side="left")
+    full = end < count
+    if not full.any():
         return None
-    share = np.convolve(within, np.ones(hold) / hold, mode="valid")   # over scans i .. i + hold - 1
-    bad_from = np.flip(np.cumsum(np.flip(share < 0.5))) > 0          # a bad window starts at i or later
-    candidates = np.nonzero(within[:len(share)] & ~bad_from)[0]
+    within_before = np.concatenate(([0], np.cumsum(within)))
+    safe_end = np.minimum(end, count)
+    share = (within_before[safe_end] - within_before[:count]) / np.maximum(safe_end - np.arange(count), 1)
+    bad = full & (share < 0.5)
+    bad_from = np.flip(np.cumsum(np.flip(bad))) > 0                  # a bad window starts at i or later
+    candidates = np.nonzero(within & full & ~bad_from)[0]
     return int(candidates[0]) if candidates.size else None
 
 

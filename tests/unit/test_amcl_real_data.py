@@ -44,3 +44,19 @@ def test_convergence_is_the_first_scan_within_the_bound_that_most_later_scans_ke
     errors = [(t / 2, r * 2)] * 25
     assert converged_scan(*np.array(errors).T) is None
     assert converged_scan(*np.array([off] * 20 + [good] * 5).T) is None
+
+
+def test_staying_is_judged_over_metres_of_travel_not_over_scans():
+    t, r = AMCL_BOUND
+    good, off = (t / 2, r / 2), (t / 2, r * 3)
+    # A scan every 0.1 m (freiburg-079, 5 Hz): ten scans off are a metre, two seconds, as one or two
+    # scans off are on a log with a scan every metre; they do not undo convergence ...
+    errors = [off] * 5 + [good] * 100 + [off] * 10 + [good] * 100
+    travel = 0.1 * np.arange(len(errors))
+    assert converged_scan(*np.array(errors).T, travel) == 5
+    # ... eight metres off do: convergence counts from when it was found again.
+    errors = [off] * 5 + [good] * 100 + [off] * 80 + [good] * 150
+    travel = 0.1 * np.arange(len(errors))
+    assert converged_scan(*np.array(errors).T, travel) == 185
+    # Without hold metres of travel after it, no scan counts.
+    assert converged_scan(*np.array([good] * 50).T, 0.1 * np.arange(50)) is None
