@@ -26,9 +26,10 @@ How it works:
   last few keyframes' points, against a submap built from the old keyframes around there,
   over a wide window (branch and bound keeps that fast). The closure's edge joins the newest
   keyframe to the old one nearest: a good match must also put those two where their own
-  points, aligned directly (point-to-line ICP, line_icp), agree within `loop_check_*`, for an
+  scans, aligned directly (point-to-line ICP, line_icp), agree within `loop_check_*`, for an
   old keyframe that sits a little wrong among its neighbours would make the edge wrong by as
-  much though the match was right. A good match is even then only a candidate:
+  much though the match was right; two keyframes that overlap too little to judge close no
+  loop. A good match is even then only a candidate:
   corridors that look alike fool one match, so a closure is taken when a second one, within
   `loop_pending_keyframes`, moves the map the same way; both become robust edges and the
   graph is optimised, and an accepted closure the optimised graph still contradicts by more
@@ -224,6 +225,7 @@ class Keyframe:
 
 class Slam:
     POOR_STREAK_LIMIT = 2
+    VIEW_TURN_WEIGHT = 1.0  # m per rad: see _nearest_view
 
     def __init__(self, config=None):
         self.config = config or SlamConfig()
@@ -463,20 +465,32 @@ class Slam:
         if result.score < config.loop_min_score:
             return
         pose = matcher.refine(cloud, result.pose).pose
-        closure = LoopClosure(candidate, newest, relative(tuple(self.graph.poses[candidate]), pose), result.score,
+        old = self._nearest_view(members, pose)
+        closure = LoopClosure(old, newest, relative(tuple(self.graph.poses[old]), pose), result.score,
                               compose(pose, inverse(current)), current)
         if self._keyframes_agree(closure):
             self._consider_loop_closure(closure)
 
+    def _nearest_view(self, members, pose):
+        """The old keyframe whose view is nearest `pose`'s: close by, and looking the same way
+        (a turn of a radian counts as VIEW_TURN_WEIGHT metres), so that its scan overlaps the
+        newest keyframe's as much as the old keyframes allow."""
+        poses = self.graph.poses[members]
+        gaps = np.hypot(poses[:, 0] - pose[0], poses[:, 1] - pose[1]) + \
+            self.VIEW_TURN_WEIGHT * np.abs(wrap_angle(poses[:, 2] - pose[2]))
+        return members[int(np.argmin(gaps))]
+
     def _keyframes_agree(self, closure):
-        """Whether the two keyframes' own points, aligned from the closure's relative pose, stay
-        within loop_check_* of it. On freiburg-101 the old keyframe sat 0.55 m off among its
-        neighbours, and a right match made an edge to it wrong by as much. Keyframes that
-        overlap too little to tell pass."""
+        """Whether the two keyframes' scans, aligned from the closure's relative pose, stay within
+        loop_check_* of it. On freiburg-101 the old keyframe sat 0.55 m off among its neighbours,
+        and a right match made an edge to it wrong by as much. The scans' every hit is aligned, not
+        the few points kept for matching, so that more pairs of keyframes overlap enough to judge;
+        those that still do not (a corridor walked back the other way) are refused: on
+        freiburg-079 the closures that could not be judged were the ones the scans contradict."""
         old, newest = self.keyframes[closure.old], self.keyframes[closure.newest]
-        aligned = align(LineCloud(old.points), newest.points, closure.measured)
+        aligned = align(LineCloud(old.rays.hits), newest.rays.hits, closure.measured)
         if aligned is None:
-            return True
+            return False
         pose = aligned[0]
         return distance(pose, closure.measured) <= self.config.loop_check_xy and \
             abs(wrap_angle(pose[2] - closure.measured[2])) <= self.config.loop_check_theta
