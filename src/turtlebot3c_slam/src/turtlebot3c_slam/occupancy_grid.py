@@ -76,36 +76,47 @@ def trace_scan(rays, pose, resolution, cell_shift=0.0, walls=None):
     if len(ends) == 0:
         return CellUpdate(np.empty((0, 2), np.int64), hit_cells_, hit_sums, hit_counts)
     step = resolution * 0.5
-    lengths = np.hypot(ends[:, 0] - origin[0], ends[:, 1] - origin[1])
-    samples = np.maximum(np.ceil(lengths / step).astype(np.int64), 1)
-    ray_index = np.repeat(np.arange(len(ends)), samples)
+    reach = ends - origin
+    samples = np.maximum(np.ceil(np.hypot(reach[:, 0], reach[:, 1]) / step).astype(np.int64), 1)
     starts = np.cumsum(samples) - samples
-    fraction = (np.arange(ray_index.size) - np.repeat(starts, samples)) / np.repeat(samples, samples)
-    points = origin + (ends[ray_index] - origin) * fraction[:, None]
-    crossed = np.floor(points / resolution + cell_shift).astype(np.int64)
+    fraction = np.arange(samples.sum()) - np.repeat(starts, samples)
+    fraction = fraction / np.repeat(samples, samples)
+    cols = _sampled_cells(origin[0], np.repeat(reach[:, 0], samples), fraction, resolution, cell_shift)
+    rows = _sampled_cells(origin[1], np.repeat(reach[:, 1], samples), fraction, resolution, cell_shift)
     if walls is not None and len(rays.free_ends):
-        crossed = crossed[_before_walls(crossed, ray_index >= len(hits), starts, ray_index, walls)]
-    free_cells = _crossed_cells(crossed, hit_cells_) if len(crossed) else np.empty((0, 2), np.int64)
+        before = _before_walls(cols, rows, starts[len(hits)], starts, samples, walls)
+        cols, rows = cols[before], rows[before]
+    free_cells = _crossed_cells(cols, rows, hit_cells_) if len(cols) else np.empty((0, 2), np.int64)
     return CellUpdate(free_cells, hit_cells_, hit_sums, hit_counts)
 
 
-def _before_walls(cells, checked, starts, ray_index, walls):
+def _sampled_cells(start, reach, fraction, resolution, cell_shift):
+    """Lattice indices along one axis of the points start + reach * fraction (in place: a scan
+    samples ~10^5 points, and each pass over them counts)."""
+    values = reach * fraction
+    values += start
+    values /= resolution
+    values += cell_shift
+    return np.floor(values, out=values).astype(np.int64)
+
+
+def _before_walls(cols, rows, first_checked, starts, samples, walls):
     """Which samples (cells along rays, each ray's from its origin out) lie before the first
-    sample of their ray that is a wall; only `checked` samples can be walls."""
-    wall = np.zeros(len(cells), dtype=bool)
-    wall[checked] = walls(cells[checked])
+    sample of their ray that is a wall; only samples from `first_checked` on can be walls."""
+    wall = np.zeros(len(cols), dtype=bool)
+    wall[first_checked:] = walls(np.column_stack((cols[first_checked:], rows[first_checked:])))
     walls_so_far = np.cumsum(wall)
     walls_before_ray = (walls_so_far - wall)[starts]
-    return walls_so_far - walls_before_ray[ray_index] == 0
+    return walls_so_far == np.repeat(walls_before_ray, samples)
 
 
-def _crossed_cells(cells, hits):
-    """The distinct cells among `cells` (N, 2), less `hits`: marked in a mask over their bounding
+def _crossed_cells(cols, rows, hits):
+    """The distinct cells among (cols, rows), less `hits`: marked in a mask over their bounding
     box, which is linear in the samples where sorting them is not (a scan samples ~10^5)."""
-    low = cells.min(axis=0)
-    width, height = cells.max(axis=0) - low + 1
+    low = np.array([cols.min(), rows.min()])
+    width, height = cols.max() - low[0] + 1, rows.max() - low[1] + 1
     crossed = np.zeros(width * height, dtype=bool)
-    crossed[(cells[:, 1] - low[1]) * width + (cells[:, 0] - low[0])] = True
+    crossed[(rows - low[1]) * width + (cols - low[0])] = True
     if len(hits):
         inside = hits - low
         inside = inside[(inside >= 0).all(axis=1) & (inside[:, 0] < width) & (inside[:, 1] < height)]
