@@ -16,10 +16,28 @@ import math
 
 import numpy as np
 
-from turtlebot3c_common.se2 import wrap_angle
+from turtlebot3c_common.se2 import transform_points, wrap_angle
+
+FIELD_RADIUS = 2  # cells an obstacle's likelihood spreads
+MAX_ANGLE_STEP = math.radians(2.0)  # the coarsest rotation step a search takes
+SWEEP_STEP = 0.1  # rad between the rotations swept_bounds lays points at
 
 
-def likelihood_field(strength, offsets=None, sigma_cells=1.0, radius=2):
+def swept_bounds(points, pose, window_xy, window_theta):
+    """Lowest and highest (x, y) that robot-frame points (N, 2) reach at any pose within
+    +-window_xy (m) and +-window_theta (rad) of `pose`: the box of the points laid at rotations
+    SWEEP_STEP or less apart, grown by the window and by how far an arc between two of them
+    bulges beyond their chord."""
+    count = int(math.ceil(window_theta / SWEEP_STEP))
+    turns = np.linspace(-window_theta, window_theta, 2 * count + 1)
+    laid = np.concatenate([transform_points((pose[0], pose[1], pose[2] + turn), points) for turn in turns])
+    reach = float(np.max(np.hypot(points[:, 0], points[:, 1])))
+    spacing = 2 * window_theta / max(2 * count, 1)
+    slack = window_xy + reach * (1.0 - math.cos(spacing / 2))
+    return laid.min(axis=0) - slack, laid.max(axis=0) + slack
+
+
+def likelihood_field(strength, offsets=None, sigma_cells=1.0, radius=FIELD_RADIUS):
     """How well a point in each cell agrees with the obstacles (strength in [0, 1] per cell).
 
     Each obstacle cell spreads its strength to the cells around with a Gaussian fall-off in
@@ -96,20 +114,25 @@ class GridMatcher:
         height, width = grid.shape
         angle, dx, dy = candidates[:, 0], candidates[:, 1], candidates[:, 2]
         if self._flat is not None:  # every candidate stays inside the grid: one flat lookup
-            return grid.ravel()[self._flat[angle] + (dy * width + dx)[:, None]].mean(axis=1)
+            indices = self._flat[angle]  # a copy, (candidates, points)
+            indices += (dy * width + dx).astype(indices.dtype)[:, None]
+            return grid.ravel()[indices].mean(axis=1)
         c = np.clip(cols[angle] + dx[:, None], 0, width - 1)
         r = np.clip(rows[angle] + dy[:, None], 0, height - 1)
         return grid[r, c].mean(axis=1)
 
     def _flat_indices(self, cols, rows, reach):
         """Flat indices of the points per angle when shifting them by -reach..reach (+ a block's
-        stride) cells keeps all inside the grid, so lookups need no clipping; None otherwise."""
+        stride) cells keeps all inside the grid, so lookups need no clipping; None otherwise.
+        They are 32-bit where the grid allows: half the memory traffic of the lookups, which are
+        most of the search's time."""
         height, width = self.pyramid[0].shape
         stride = 1 << self.levels
         if cols.min() - reach < 0 or rows.min() - reach < 0 or cols.max() + reach + stride >= width or \
                 rows.max() + reach + stride >= height:
             return None
-        return rows * width + cols
+        flat = rows * width + cols
+        return flat.astype(np.int32) if height * width < 2 ** 31 else flat
 
     def score(self, points, pose):
         """Mean field value of robot-frame points at pose (cell lookup, no interpolation)."""
@@ -143,11 +166,10 @@ class GridMatcher:
         is the interpolated mean field value; it never moves more than a cell or two.
         """
         current = np.array(pose, dtype=np.float64)
-        best, best_score = current.copy(), self._interpolated_score(points, current)
+        values, grad_x, grad_y = self._interpolate(_transform(points, current))
+        best, best_score = current.copy(), float(values.mean())
         for _ in range(iterations):
             cos, sin = math.cos(current[2]), math.sin(current[2])
-            world = _transform(points, current)
-            values, grad_x, grad_y = self._interpolate(world)
             d_theta = grad_x * (-sin * points[:, 0] - cos * points[:, 1]) + \
                 grad_y * (cos * points[:, 0] - sin * points[:, 1])
             jacobian = np.column_stack((grad_x, grad_y, d_theta))
@@ -158,7 +180,8 @@ class GridMatcher:
             if limit > 1.0:
                 step /= limit
             current = current + step
-            score = self._interpolated_score(points, current)
+            values, grad_x, grad_y = self._interpolate(_transform(points, current))
+            score = float(values.mean())
             if score <= best_score:
                 break
             best, best_score = current.copy(), score
@@ -183,7 +206,7 @@ class GridMatcher:
             return MatchResult(tuple(prior), 0.0)
         if angle_step is None:
             reach = max(float(np.max(np.hypot(points[:, 0], points[:, 1]))), self.resolution)
-            angle_step = min(max(self.resolution / reach, math.radians(0.25)), math.radians(2.0))
+            angle_step = min(max(self.resolution / reach, math.radians(0.25)), MAX_ANGLE_STEP)
         steps = int(math.ceil(window_theta / angle_step))
         angles = prior[2] + np.arange(-steps, steps + 1) * angle_step
         cos, sin = np.cos(angles)[:, None], np.sin(angles)[:, None]
