@@ -31,12 +31,21 @@ class CellUpdate:
         self.hits = hits  # (H, 2) int64
         self.hit_sums = np.full((len(hits), 2), 0.5) if hit_sums is None else hit_sums  # (H, 2)
         self.hit_counts = np.ones(len(hits)) if hit_counts is None else hit_counts     # (H,)
+        self._bounds = _bounds(free, hits)
 
     def bounds(self):
-        cells = np.concatenate((self.free, self.hits))
-        if len(cells) == 0:
-            return None
-        return cells.min(axis=0), cells.max(axis=0)
+        """(lowest, highest) lattice cell it touches; None when it touches none."""
+        return self._bounds
+
+
+def _bounds(*cell_sets):
+    """(lowest, highest) (i, j) over cell arrays (N, 2), None when all are empty; kept per update, for
+    an update is applied to the local map at least twice (added, taken back)."""
+    present = [cells for cells in cell_sets if len(cells)]
+    if not present:
+        return None
+    return np.min([cells.min(axis=0) for cells in present], axis=0), \
+        np.max([cells.max(axis=0) for cells in present], axis=0)
 
 
 def _cell_keys(cells):
@@ -192,13 +201,17 @@ class LogOddsGrid:
         self._ensure(*bounds)
         for cells, value in ((update.free, self.free_log_odds), (update.hits, self.hit_log_odds)):
             if len(cells):
-                cols, rows = cells[:, 0] - self.offset[0], cells[:, 1] - self.offset[1]
-                self.log_odds[rows, cols] += sign * value
-                self.observations[rows, cols] += sign
+                flat = self._flat_indices(cells)
+                self.log_odds.reshape(-1)[flat] += sign * value
+                self.observations.reshape(-1)[flat] += sign
         if len(update.hits):
-            cols, rows = update.hits[:, 0] - self.offset[0], update.hits[:, 1] - self.offset[1]
-            self.hit_sums[rows, cols] += sign * update.hit_sums
-            self.hit_counts[rows, cols] += sign * update.hit_counts
+            flat = self._flat_indices(update.hits)
+            self.hit_sums.reshape(-1, 2)[flat] += sign * update.hit_sums
+            self.hit_counts.reshape(-1)[flat] += sign * update.hit_counts
+
+    def _flat_indices(self, cells):
+        """Indices of lattice cells (N, 2), inside the arrays, into the arrays flattened (views)."""
+        return (cells[:, 1] - self.offset[1]) * self.log_odds.shape[1] + (cells[:, 0] - self.offset[0])
 
     def occupancy_strength(self, low, size):
         """Obstacle evidence over the lattice window low (i, j), size (w, h), for scan matching.
