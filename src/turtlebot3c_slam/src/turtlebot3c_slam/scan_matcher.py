@@ -194,13 +194,16 @@ class GridMatcher:
 
     # --- search ----------------------------------------------------------------------------
 
-    def match(self, points, prior, window_xy, window_theta, angle_step=None, prior_sigmas=None):
+    def match(self, points, prior, window_xy, window_theta, angle_step=None, prior_sigmas=None, min_score=0.0):
         """Best pose within +-window_xy (m) and +-window_theta (rad) of `prior` for `points` (N, 2).
 
         Rotations are tried every `angle_step` (default: the farthest point moves one cell),
         translations every cell. With prior_sigmas (m, rad), a pose's score is multiplied by a
         Gaussian of its distance from the prior, so where the scan cannot tell poses apart (a
-        corridor, a doorway) the prior wins; ties always keep the prior.
+        corridor, a doorway) the prior wins; ties always keep the prior. Poses that cannot score
+        `min_score` are not searched: when none can, the result scores below it (a caller that
+        would reject such a match anyway is spared most of the search: a loop-closure search
+        that finds nothing is most of them).
         """
         if len(points) == 0:
             return MatchResult(tuple(prior), 0.0)
@@ -219,13 +222,13 @@ class GridMatcher:
         if prior_sigmas is not None:
             self._penalty = (self.resolution ** 2 / (2.0 * prior_sigmas[0] ** 2),
                              angle_step ** 2 / (2.0 * prior_sigmas[1] ** 2), steps)
-        best_candidate, best_score = self._branch_and_bound(cols, rows, steps, reach)
+        best_candidate, best_score = self._branch_and_bound(cols, rows, steps, reach, min_score)
         angle_index, dx, dy = best_candidate
         angle = wrap_angle(float(angles[angle_index]))
         pose = (prior[0] + dx * self.resolution, prior[1] + dy * self.resolution, angle)
         return MatchResult(pose, best_score)
 
-    def _branch_and_bound(self, cols, rows, center_angle, reach):
+    def _branch_and_bound(self, cols, rows, center_angle, reach, min_score):
         top = min(self.levels, max(0, int(math.ceil(math.log2(2 * reach + 1)))))
         stride = 1 << top
         starts = np.arange(-reach, reach + 1, stride)
@@ -239,7 +242,7 @@ class GridMatcher:
         if greedy_score > best_score:
             best, best_score = greedy, greedy_score
         for level in range(top, 0, -1):
-            keep = bounds > best_score
+            keep = (bounds > best_score) & (bounds >= min_score)
             if not keep.any():
                 return best, best_score
             candidates, bounds = candidates[keep], bounds[keep]

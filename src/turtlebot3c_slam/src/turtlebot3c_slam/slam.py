@@ -54,6 +54,13 @@ from .slam_scan import scan_rays, voxel_filter
 SLAM_METHODS = collections.OrderedDict([("gmapping", "turtlebot3_slam_gmapping"), ("karto", "slam_karto")])
 
 
+def searched_cells(points, pose, window_xy, window_theta, resolution):
+    """Lowest and highest lattice cell (i, j) robot-frame points can fall in when a search tries
+    poses within +-window_xy, +-window_theta of `pose` (its last rotation step may overshoot)."""
+    low, high = swept_bounds(points, pose, window_xy, window_theta + MAX_ANGLE_STEP)
+    return np.floor(low / resolution).astype(np.int64), np.floor(high / resolution).astype(np.int64)
+
+
 def check_slam_method(name):
     """The node name for a slam_methods value; ValueError naming the known ones otherwise."""
     if name not in SLAM_METHODS:
@@ -230,6 +237,7 @@ class Slam:
     # and its maxima where the points fall are what a map without edges would give.
     TRACKING_MAP_MARGIN = 0.5
     TRACKING_LEVELS = 3  # coarser maxima grids of the tracking search's branch and bound
+    LOOP_LEVELS = 5      # and of the loop-closure search's, over its wider window
 
     def __init__(self, config=None):
         self.config = config or SlamConfig()
@@ -344,9 +352,7 @@ class Slam:
         field is built afresh at each keyframe, and over a 180-degree scan's box rather than its
         range's full circle it takes half the time or less."""
         resolution = self.config.match_resolution
-        low_xy, high_xy = swept_bounds(points, predicted, window_xy, window_theta + MAX_ANGLE_STEP)
-        need_low = np.floor(low_xy / resolution).astype(np.int64)
-        need_high = np.floor(high_xy / resolution).astype(np.int64)
+        need_low, need_high = searched_cells(points, predicted, window_xy, window_theta, resolution)
         cached = self._tracking
         if cached is not None and cached[3] == self._local_version and (need_low >= cached[1]).all() \
                 and (need_high <= cached[2]).all():
@@ -471,7 +477,8 @@ class Slam:
         if len(cloud) < 20:
             return
         matcher = self._submap_matcher(members, current, cloud)
-        result = matcher.match(cloud, current, config.loop_window_xy, config.loop_window_theta)
+        result = matcher.match(cloud, current, config.loop_window_xy, config.loop_window_theta,
+                               min_score=config.loop_min_score)
         if result.score < config.loop_min_score:
             return
         pose = matcher.refine(cloud, result.pose).pose
@@ -542,10 +549,14 @@ class Slam:
         return cloud
 
     def _submap_matcher(self, members, current, cloud):
+        """A matcher over the old keyframes' points where the cloud can fall in the loop search's
+        window, with room for the coarsest maxima's blocks and the field's spread."""
         resolution = self.config.match_resolution
-        reach = float(np.max(np.hypot(cloud[:, 0], cloud[:, 1]))) + self.config.loop_window_xy + 0.5
-        low = np.floor((np.array(current[:2]) - reach) / resolution).astype(np.int64)
-        size = np.full(2, int(math.ceil(2 * reach / resolution)) + 1)
+        low, high = searched_cells(cloud, current, self.config.loop_window_xy, self.config.loop_window_theta,
+                                   resolution)
+        margin = (1 << self.LOOP_LEVELS) + FIELD_RADIUS
+        low, high = low - margin, high + margin
+        size = high - low + 1
         hits = np.concatenate([transform_points(tuple(self.graph.poses[index]), self.keyframes[index].points)
                                for index in members])
         cells, sums, counts = hit_cells(hits, resolution)
@@ -555,7 +566,7 @@ class Slam:
         offsets = np.zeros((size[1], size[0], 2), dtype=np.float32)
         strength[cells[inside, 1], cells[inside, 0]] = 1.0
         offsets[cells[inside, 1], cells[inside, 0]] = sums[inside] / counts[inside, None] - 0.5
-        return GridMatcher(likelihood_field(strength, offsets), low, resolution, levels=5)
+        return GridMatcher(likelihood_field(strength, offsets), low, resolution, levels=self.LOOP_LEVELS)
 
     def _optimize(self):
         newest = len(self.keyframes) - 1
