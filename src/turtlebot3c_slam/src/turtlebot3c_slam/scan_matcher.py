@@ -93,13 +93,7 @@ class GridMatcher:
         self._penalty = None
         self._flat = None
         for level in range(1, self.levels + 1):
-            half = 1 << (level - 1)
-            previous = self.pyramid[-1]
-            wider = previous.copy()
-            np.maximum(wider[:, :-half], previous[:, half:], out=wider[:, :-half])
-            taller = wider.copy()
-            np.maximum(taller[:-half, :], wider[half:, :], out=taller[:-half, :])
-            self.pyramid.append(taller)
+            self.pyramid.append(_block_maxima(self.pyramid[-1], 1 << (level - 1)))
 
     # --- scoring ---------------------------------------------------------------------------
 
@@ -288,6 +282,18 @@ class GridMatcher:
             scores = self._scores(current - 1, cols, rows, children)
             candidates = children[np.argmax(scores)][None]
         return candidates[0], float(self._exact_scores(cols, rows, candidates)[0])
+
+
+def _block_maxima(grid, half):
+    """Each cell's maximum with the cells `half` to its right, above, and both: from blocks of
+    half x half cells, blocks twice as wide (the last `half` columns and rows keep their own)."""
+    wider = np.empty_like(grid)
+    np.maximum(grid[:, :-half], grid[:, half:], out=wider[:, :-half])
+    wider[:, -half:] = grid[:, -half:]
+    taller = np.empty_like(wider)
+    np.maximum(wider[:-half], wider[half:], out=taller[:-half])
+    taller[-half:] = wider[-half:]
+    return taller
 
 
 def _transform(points, pose):
