@@ -54,16 +54,21 @@ def likelihood_field(strength, offsets=None, sigma_cells=1.0, radius=FIELD_RADIU
         hit_x = hit_y = np.zeros(len(rows), dtype=np.float32)
     else:
         hit_x, hit_y = offsets[rows, cols, 0], offsets[rows, cols, 1]
-    field = np.zeros((height + 2 * radius, width + 2 * radius), dtype=np.float32)
+    padded_width = width + 2 * radius
+    field = np.zeros((height + 2 * radius, padded_width), dtype=np.float32)
+    flat_field = field.reshape(-1)
+    obstacles = (rows + radius) * padded_width + cols + radius
     scale = np.float32(-0.5 / sigma_cells ** 2)
-    for dy in range(-radius, radius + 1):
-        for dx in range(-radius, radius + 1):
-            # The cell dx, dy away from an obstacle cell is this far from its hits; within one
-            # (dx, dy) every obstacle reaches a different cell, so plain indexing takes the max.
-            gap_x, gap_y = hit_x - np.float32(dx), hit_y - np.float32(dy)
-            reached = values * np.exp(scale * (gap_x * gap_x + gap_y * gap_y))
-            target = (rows + radius + dy, cols + radius + dx)
-            field[target] = np.maximum(field[target], reached)
+    shifts = range(-radius, radius + 1)
+    # The cell dx, dy away from an obstacle cell is this far (squared, per axis) from its hits.
+    gaps_x = {dx: np.square(hit_x - np.float32(dx)) for dx in shifts}
+    gaps_y = {dy: np.square(hit_y - np.float32(dy)) for dy in shifts}
+    for dy in shifts:
+        for dx in shifts:
+            # Within one (dx, dy) every obstacle reaches a different cell, so plain indexing takes the max.
+            reached = values * np.exp(scale * (gaps_x[dx] + gaps_y[dy]))
+            target = obstacles + (dy * padded_width + dx)
+            flat_field[target] = np.maximum(flat_field[target], reached)
     return field[radius:radius + height, radius:radius + width]
 
 
