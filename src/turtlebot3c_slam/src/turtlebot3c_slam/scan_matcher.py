@@ -146,11 +146,14 @@ class GridMatcher:
         v = world[:, 1] / self.resolution - 0.5 - self.low[1]
         grid = self.pyramid[0]
         height, width = grid.shape
-        col = np.clip(np.floor(u).astype(np.int64), 0, width - 2)
-        row = np.clip(np.floor(v).astype(np.int64), 0, height - 2)
-        fu, fv = np.clip(u - col, 0.0, 1.0), np.clip(v - row, 0.0, 1.0)
-        f00, f10 = grid[row, col], grid[row, col + 1]
-        f01, f11 = grid[row + 1, col], grid[row + 1, col + 1]
+        # np.minimum / np.maximum rather than np.clip: the same values, without np.clip's
+        # overhead, which counts on a few hundred points per call.
+        col = np.minimum(np.maximum(np.floor(u).astype(np.int64), 0), width - 2)
+        row = np.minimum(np.maximum(np.floor(v).astype(np.int64), 0), height - 2)
+        fu, fv = np.minimum(np.maximum(u - col, 0.0), 1.0), np.minimum(np.maximum(v - row, 0.0), 1.0)
+        flat, corner = grid.reshape(-1), row * width + col
+        f00, f10 = flat[corner], flat[corner + 1]
+        f01, f11 = flat[corner + width], flat[corner + width + 1]
         bottom, top = f00 + fu * (f10 - f00), f01 + fu * (f11 - f01)
         values = bottom + fv * (top - bottom)
         d_u = (1 - fv) * (f10 - f00) + fv * (f11 - f01)
