@@ -273,14 +273,8 @@ class GridMatcher:
 
     def _children(self, candidates, level, reach):
         half = 1 << (level - 1)
-        children = []
-        for ox in (0, half):
-            for oy in (0, half):
-                child = candidates.copy()
-                child[:, 1] += ox
-                child[:, 2] += oy
-                children.append(child)
-        children = np.concatenate(children)
+        quarters = np.array([[0, 0, 0], [0, 0, half], [0, half, 0], [0, half, half]], dtype=candidates.dtype)
+        children = (quarters[:, None, :] + candidates[None]).reshape(-1, 3)  # each quarter's, in turn
         return children[(children[:, 1] <= reach) & (children[:, 2] <= reach)]
 
     def _descend(self, cols, rows, candidate, level, reach):
