@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from turtlebot3c_common.se2 import transform_points, wrap_angle
+from turtlebot3c_common.se2 import wrap_angle
 
 FIELD_RADIUS = 2  # cells an obstacle's likelihood spreads
 MAX_ANGLE_STEP = math.radians(2.0)  # the coarsest rotation step a search takes
@@ -29,12 +29,14 @@ def swept_bounds(points, pose, window_xy, window_theta):
     SWEEP_STEP or less apart, grown by the window and by how far an arc between two of them
     bulges beyond their chord."""
     count = int(math.ceil(window_theta / SWEEP_STEP))
-    turns = np.linspace(-window_theta, window_theta, 2 * count + 1)
-    laid = np.concatenate([transform_points((pose[0], pose[1], pose[2] + turn), points) for turn in turns])
+    headings = pose[2] + np.linspace(-window_theta, window_theta, 2 * count + 1)[:, None]
+    cos, sin = np.cos(headings), np.sin(headings)
+    laid_x = pose[0] + cos * points[:, 0] - sin * points[:, 1]
+    laid_y = pose[1] + sin * points[:, 0] + cos * points[:, 1]
     reach = float(np.max(np.hypot(points[:, 0], points[:, 1])))
     spacing = 2 * window_theta / max(2 * count, 1)
     slack = window_xy + reach * (1.0 - math.cos(spacing / 2))
-    return laid.min(axis=0) - slack, laid.max(axis=0) + slack
+    return np.array([laid_x.min(), laid_y.min()]) - slack, np.array([laid_x.max(), laid_y.max()]) + slack
 
 
 def likelihood_field(strength, offsets=None, sigma_cells=1.0, radius=FIELD_RADIUS):
