@@ -221,24 +221,32 @@ class LogOddsGrid:
         """
         strength = np.zeros((size[1], size[0]), dtype=np.float32)
         offsets = np.zeros((size[1], size[0], 2), dtype=np.float32)
+        rows, cols, values, hit_offsets = self.obstacles(low, size)
+        strength[rows, cols] = values
+        offsets[rows, cols] = hit_offsets
+        return strength, offsets
+
+    def obstacles(self, low, size):
+        """The cells of the lattice window low (i, j), size (w, h) that hold obstacle evidence, as
+        occupancy_strength gives them but without the window's free and unknown cells: their rows
+        and columns in the window, strength in (0, 1] and offsets (K, 2) to the mean of their hits."""
         height, width = self.log_odds.shape
-        if not width:
-            return strength, offsets
         src_low = np.maximum(low, self.offset)
         src_high = np.minimum(low + size, self.offset + (width, height))
-        if (src_high <= src_low).any():
-            return strength, offsets
+        if not width or (src_high <= src_low).any():
+            return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.float32), np.zeros((0, 2), np.float32)
         a, b, w = src_low - self.offset, src_high - self.offset, src_low - low
-        rows, cols = slice(a[1], b[1]), slice(a[0], b[0])
-        target = (slice(w[1], w[1] + b[1] - a[1]), slice(w[0], w[0] + b[0] - a[0]))
+        window = (slice(a[1], b[1]), slice(a[0], b[0]))
+        rows, cols = np.nonzero(self.log_odds[window] > 0.0)
         # One net hit is full evidence; unknown and free cells give none.
-        strength[target] = np.clip(self.log_odds[rows, cols] / self.hit_log_odds, 0.0, 1.0)
-        hit_rows, hit_cols = np.nonzero(self.hit_counts[rows, cols] > 0.5)
-        if len(hit_rows):
-            counts = self.hit_counts[rows, cols][hit_rows, hit_cols]
-            mean = self.hit_sums[rows, cols][hit_rows, hit_cols] / counts[:, None] - 0.5
-            offsets[target][hit_rows, hit_cols] = mean
-        return strength, offsets
+        strength = np.clip(self.log_odds[window][rows, cols] / self.hit_log_odds, 0.0, 1.0)
+        evident = strength > 0.0
+        rows, cols, strength = rows[evident], cols[evident], strength[evident]
+        counts = self.hit_counts[window][rows, cols]
+        offsets = np.zeros((len(rows), 2), dtype=np.float32)
+        hit = counts > 0.5
+        offsets[hit] = self.hit_sums[window][rows[hit], cols[hit]] / counts[hit, None] - 0.5
+        return rows + w[1], cols + w[0], strength, offsets
 
     def to_occupancy_map(self, occupied_probability=0.65, free_probability=0.45, margin=2):
         """The observed part of the grid as an OccupancyMap with 100 / 0 / -1 cells (as gmapping publishes)."""

@@ -46,16 +46,21 @@ def likelihood_field(strength, offsets=None, sigma_cells=1.0, radius=FIELD_RADIU
     the distance from their centres to where its hits were (`offsets` (h, w, 2), in cells,
     from the obstacle cell's centre; default the centre); a cell keeps the largest value.
     Sampled at cell centres and interpolated, the field peaks where the hits were, not at
-    the centres of their cells, so matching is not biased by the grid. The work grows with
-    the obstacle cells, not the window: a map is mostly free and unknown space.
+    the centres of their cells, so matching is not biased by the grid.
     """
-    height, width = strength.shape
     rows, cols = np.nonzero(strength > 0)
-    values = strength[rows, cols].astype(np.float32)
-    if offsets is None:
-        hit_x = hit_y = np.zeros(len(rows), dtype=np.float32)
-    else:
-        hit_x, hit_y = offsets[rows, cols, 0], offsets[rows, cols, 1]
+    hit_offsets = np.zeros((len(rows), 2), dtype=np.float32) if offsets is None else offsets[rows, cols]
+    return sparse_likelihood_field(strength.shape, rows, cols, strength[rows, cols], hit_offsets, sigma_cells,
+                                   radius)
+
+
+def sparse_likelihood_field(shape, rows, cols, strength, offsets, sigma_cells=1.0, radius=FIELD_RADIUS):
+    """likelihood_field of a window `shape` (h, w) given only its obstacle cells (rows, cols), their
+    strength in (0, 1] and offsets (K, 2). The work grows with the obstacle cells, not the window:
+    a map is mostly free and unknown space."""
+    height, width = shape
+    values = np.asarray(strength).astype(np.float32)
+    hit_x, hit_y = offsets[:, 0].astype(np.float32), offsets[:, 1].astype(np.float32)
     padded_width = width + 2 * radius
     field = np.zeros((height + 2 * radius, padded_width), dtype=np.float32)
     flat_field = field.reshape(-1)

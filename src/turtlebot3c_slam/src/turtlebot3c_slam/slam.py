@@ -46,7 +46,7 @@ from turtlebot3c_common.se2 import compose, distance, inverse, relative, transfo
 from .line_icp import LineCloud, align
 from .occupancy_grid import LogOddsGrid, hit_cells
 from .pose_graph import PoseGraph
-from .scan_matcher import FIELD_RADIUS, MAX_ANGLE_STEP, GridMatcher, likelihood_field, swept_bounds
+from .scan_matcher import FIELD_RADIUS, MAX_ANGLE_STEP, GridMatcher, sparse_likelihood_field, swept_bounds
 from .slam_scan import scan_rays, voxel_filter
 
 # Names turtlebot3_slam's `slam_methods` argument takes that this SLAM stands in for, with the
@@ -359,8 +359,9 @@ class Slam:
             return cached[0]
         margin = int(math.ceil(self.TRACKING_MAP_MARGIN / resolution))
         low, high = need_low - margin, need_high + margin
-        strength, offsets = self.local_grid.occupancy_strength(low, high - low + 1)
-        matcher = GridMatcher(likelihood_field(strength, offsets), low, resolution, levels=self.TRACKING_LEVELS)
+        size = high - low + 1
+        field = sparse_likelihood_field((size[1], size[0]), *self.local_grid.obstacles(low, size))
+        matcher = GridMatcher(field, low, resolution, levels=self.TRACKING_LEVELS)
         # Near its edge the field misses obstacles beyond it (it spreads FIELD_RADIUS cells, the
         # coarsest maxima span 2^levels): later scans may use only the inside.
         edge = (1 << self.TRACKING_LEVELS) + FIELD_RADIUS
@@ -562,11 +563,9 @@ class Slam:
         cells, sums, counts = hit_cells(hits, resolution)
         cells -= low
         inside = ((cells >= 0) & (cells < size)).all(axis=1)
-        strength = np.zeros((size[1], size[0]), dtype=np.float32)
-        offsets = np.zeros((size[1], size[0], 2), dtype=np.float32)
-        strength[cells[inside, 1], cells[inside, 0]] = 1.0
-        offsets[cells[inside, 1], cells[inside, 0]] = sums[inside] / counts[inside, None] - 0.5
-        return GridMatcher(likelihood_field(strength, offsets), low, resolution, levels=self.LOOP_LEVELS)
+        field = sparse_likelihood_field((size[1], size[0]), cells[inside, 1], cells[inside, 0],
+                                        np.ones(inside.sum()), sums[inside] / counts[inside, None] - 0.5)
+        return GridMatcher(field, low, resolution, levels=self.LOOP_LEVELS)
 
     def _optimize(self):
         newest = len(self.keyframes) - 1
