@@ -31,12 +31,21 @@ class CellUpdate:
         self.hits = hits  # (H, 2) int64
         self.hit_sums = np.full((len(hits), 2), 0.5) if hit_sums is None else hit_sums  # (H, 2)
         self.hit_counts = np.ones(len(hits)) if hit_counts is None else hit_counts     # (H,)
+        self._bounds = _bounds(free, hits)
 
     def bounds(self):
-        cells = np.concatenate((self.free, self.hits))
-        if len(cells) == 0:
-            return None
-        return cells.min(axis=0), cells.max(axis=0)
+        """(lowest, highest) lattice cell it touches; None when it touches none."""
+        return self._bounds
+
+
+def _bounds(*cell_sets):
+    """(lowest, highest) (i, j) over cell arrays (N, 2), None when all are empty; kept per update, for
+    an update is applied to the local map at least twice (added, taken back)."""
+    present = [cells for cells in cell_sets if len(cells)]
+    if not present:
+        return None
+    return np.min([cells.min(axis=0) for cells in present], axis=0), \
+        np.max([cells.max(axis=0) for cells in present], axis=0)
 
 
 def _cell_keys(cells):
@@ -76,36 +85,47 @@ def trace_scan(rays, pose, resolution, cell_shift=0.0, walls=None):
     if len(ends) == 0:
         return CellUpdate(np.empty((0, 2), np.int64), hit_cells_, hit_sums, hit_counts)
     step = resolution * 0.5
-    lengths = np.hypot(ends[:, 0] - origin[0], ends[:, 1] - origin[1])
-    samples = np.maximum(np.ceil(lengths / step).astype(np.int64), 1)
-    ray_index = np.repeat(np.arange(len(ends)), samples)
+    reach = ends - origin
+    samples = np.maximum(np.ceil(np.hypot(reach[:, 0], reach[:, 1]) / step).astype(np.int64), 1)
     starts = np.cumsum(samples) - samples
-    fraction = (np.arange(ray_index.size) - np.repeat(starts, samples)) / np.repeat(samples, samples)
-    points = origin + (ends[ray_index] - origin) * fraction[:, None]
-    crossed = np.floor(points / resolution + cell_shift).astype(np.int64)
+    fraction = np.arange(samples.sum()) - np.repeat(starts, samples)
+    fraction = fraction / np.repeat(samples, samples)
+    cols = _sampled_cells(origin[0], np.repeat(reach[:, 0], samples), fraction, resolution, cell_shift)
+    rows = _sampled_cells(origin[1], np.repeat(reach[:, 1], samples), fraction, resolution, cell_shift)
     if walls is not None and len(rays.free_ends):
-        crossed = crossed[_before_walls(crossed, ray_index >= len(hits), starts, ray_index, walls)]
-    free_cells = _crossed_cells(crossed, hit_cells_) if len(crossed) else np.empty((0, 2), np.int64)
+        before = _before_walls(cols, rows, starts[len(hits)], starts, samples, walls)
+        cols, rows = cols[before], rows[before]
+    free_cells = _crossed_cells(cols, rows, hit_cells_) if len(cols) else np.empty((0, 2), np.int64)
     return CellUpdate(free_cells, hit_cells_, hit_sums, hit_counts)
 
 
-def _before_walls(cells, checked, starts, ray_index, walls):
+def _sampled_cells(start, reach, fraction, resolution, cell_shift):
+    """Lattice indices along one axis of the points start + reach * fraction (in place: a scan
+    samples ~10^5 points, and each pass over them counts)."""
+    values = reach * fraction
+    values += start
+    values /= resolution
+    values += cell_shift
+    return np.floor(values, out=values).astype(np.int64)
+
+
+def _before_walls(cols, rows, first_checked, starts, samples, walls):
     """Which samples (cells along rays, each ray's from its origin out) lie before the first
-    sample of their ray that is a wall; only `checked` samples can be walls."""
-    wall = np.zeros(len(cells), dtype=bool)
-    wall[checked] = walls(cells[checked])
+    sample of their ray that is a wall; only samples from `first_checked` on can be walls."""
+    wall = np.zeros(len(cols), dtype=bool)
+    wall[first_checked:] = walls(np.column_stack((cols[first_checked:], rows[first_checked:])))
     walls_so_far = np.cumsum(wall)
     walls_before_ray = (walls_so_far - wall)[starts]
-    return walls_so_far - walls_before_ray[ray_index] == 0
+    return walls_so_far == np.repeat(walls_before_ray, samples)
 
 
-def _crossed_cells(cells, hits):
-    """The distinct cells among `cells` (N, 2), less `hits`: marked in a mask over their bounding
+def _crossed_cells(cols, rows, hits):
+    """The distinct cells among (cols, rows), less `hits`: marked in a mask over their bounding
     box, which is linear in the samples where sorting them is not (a scan samples ~10^5)."""
-    low = cells.min(axis=0)
-    width, height = cells.max(axis=0) - low + 1
+    low = np.array([cols.min(), rows.min()])
+    width, height = cols.max() - low[0] + 1, rows.max() - low[1] + 1
     crossed = np.zeros(width * height, dtype=bool)
-    crossed[(cells[:, 1] - low[1]) * width + (cells[:, 0] - low[0])] = True
+    crossed[(rows - low[1]) * width + (cols - low[0])] = True
     if len(hits):
         inside = hits - low
         inside = inside[(inside >= 0).all(axis=1) & (inside[:, 0] < width) & (inside[:, 1] < height)]
@@ -181,13 +201,17 @@ class LogOddsGrid:
         self._ensure(*bounds)
         for cells, value in ((update.free, self.free_log_odds), (update.hits, self.hit_log_odds)):
             if len(cells):
-                cols, rows = cells[:, 0] - self.offset[0], cells[:, 1] - self.offset[1]
-                self.log_odds[rows, cols] += sign * value
-                self.observations[rows, cols] += sign
+                flat = self._flat_indices(cells)
+                self.log_odds.reshape(-1)[flat] += sign * value
+                self.observations.reshape(-1)[flat] += sign
         if len(update.hits):
-            cols, rows = update.hits[:, 0] - self.offset[0], update.hits[:, 1] - self.offset[1]
-            self.hit_sums[rows, cols] += sign * update.hit_sums
-            self.hit_counts[rows, cols] += sign * update.hit_counts
+            flat = self._flat_indices(update.hits)
+            self.hit_sums.reshape(-1, 2)[flat] += sign * update.hit_sums
+            self.hit_counts.reshape(-1)[flat] += sign * update.hit_counts
+
+    def _flat_indices(self, cells):
+        """Indices of lattice cells (N, 2), inside the arrays, into the arrays flattened (views)."""
+        return (cells[:, 1] - self.offset[1]) * self.log_odds.shape[1] + (cells[:, 0] - self.offset[0])
 
     def occupancy_strength(self, low, size):
         """Obstacle evidence over the lattice window low (i, j), size (w, h), for scan matching.
@@ -197,24 +221,32 @@ class LogOddsGrid:
         """
         strength = np.zeros((size[1], size[0]), dtype=np.float32)
         offsets = np.zeros((size[1], size[0], 2), dtype=np.float32)
+        rows, cols, values, hit_offsets = self.obstacles(low, size)
+        strength[rows, cols] = values
+        offsets[rows, cols] = hit_offsets
+        return strength, offsets
+
+    def obstacles(self, low, size):
+        """The cells of the lattice window low (i, j), size (w, h) that hold obstacle evidence, as
+        occupancy_strength gives them but without the window's free and unknown cells: their rows
+        and columns in the window, strength in (0, 1] and offsets (K, 2) to the mean of their hits."""
         height, width = self.log_odds.shape
-        if not width:
-            return strength, offsets
         src_low = np.maximum(low, self.offset)
         src_high = np.minimum(low + size, self.offset + (width, height))
-        if (src_high <= src_low).any():
-            return strength, offsets
+        if not width or (src_high <= src_low).any():
+            return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.float32), np.zeros((0, 2), np.float32)
         a, b, w = src_low - self.offset, src_high - self.offset, src_low - low
-        rows, cols = slice(a[1], b[1]), slice(a[0], b[0])
-        target = (slice(w[1], w[1] + b[1] - a[1]), slice(w[0], w[0] + b[0] - a[0]))
+        window = (slice(a[1], b[1]), slice(a[0], b[0]))
+        rows, cols = np.nonzero(self.log_odds[window] > 0.0)
         # One net hit is full evidence; unknown and free cells give none.
-        strength[target] = np.clip(self.log_odds[rows, cols] / self.hit_log_odds, 0.0, 1.0)
-        hit_rows, hit_cols = np.nonzero(self.hit_counts[rows, cols] > 0.5)
-        if len(hit_rows):
-            counts = self.hit_counts[rows, cols][hit_rows, hit_cols]
-            mean = self.hit_sums[rows, cols][hit_rows, hit_cols] / counts[:, None] - 0.5
-            offsets[target][hit_rows, hit_cols] = mean
-        return strength, offsets
+        strength = np.clip(self.log_odds[window][rows, cols] / self.hit_log_odds, 0.0, 1.0)
+        evident = strength > 0.0
+        rows, cols, strength = rows[evident], cols[evident], strength[evident]
+        counts = self.hit_counts[window][rows, cols]
+        offsets = np.zeros((len(rows), 2), dtype=np.float32)
+        hit = counts > 0.5
+        offsets[hit] = self.hit_sums[window][rows[hit], cols[hit]] / counts[hit, None] - 0.5
+        return rows + w[1], cols + w[0], strength, offsets
 
     def to_occupancy_map(self, occupied_probability=0.65, free_probability=0.45, margin=2):
         """The observed part of the grid as an OccupancyMap with 100 / 0 / -1 cells (as gmapping publishes)."""

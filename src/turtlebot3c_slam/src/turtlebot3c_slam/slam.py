@@ -47,12 +47,19 @@ from turtlebot3c_common.se2 import compose, distance, inverse, relative, transfo
 from .line_icp import LineCloud, align
 from .occupancy_grid import LogOddsGrid, hit_cells
 from .pose_graph import PoseGraph
-from .scan_matcher import GridMatcher, likelihood_field
+from .scan_matcher import FIELD_RADIUS, MAX_ANGLE_STEP, GridMatcher, sparse_likelihood_field, swept_bounds
 from .slam_scan import scan_rays, voxel_filter
 
 # Names turtlebot3_slam's `slam_methods` argument takes that this SLAM stands in for, with the
 # node name upstream gives each (its CI looks for turtlebot3_slam_gmapping).
 SLAM_METHODS = collections.OrderedDict([("gmapping", "turtlebot3_slam_gmapping"), ("karto", "slam_karto")])
+
+
+def searched_cells(points, pose, window_xy, window_theta, resolution):
+    """Lowest and highest lattice cell (i, j) robot-frame points can fall in when a search tries
+    poses within +-window_xy, +-window_theta of `pose` (its last rotation step may overshoot)."""
+    low, high = swept_bounds(points, pose, window_xy, window_theta + MAX_ANGLE_STEP)
+    return np.floor(low / resolution).astype(np.int64), np.floor(high / resolution).astype(np.int64)
 
 
 def check_slam_method(name):
@@ -225,6 +232,13 @@ class Keyframe:
 
 class Slam:
     POOR_STREAK_LIMIT = 2
+    # m around what a scan can reach in its search window that the tracking map also covers: the
+    # next scans, until the next keyframe redraws the map, reuse it while they stay inside. At
+    # least the branch and bound's coarsest block plus the field's spread (0.25 m), so the field
+    # and its maxima where the points fall are what a map without edges would give.
+    TRACKING_MAP_MARGIN = 0.5
+    TRACKING_LEVELS = 3  # coarser maxima grids of the tracking search's branch and bound
+    LOOP_LEVELS = 5      # and of the loop-closure search's, over its wider window
     VIEW_TURN_WEIGHT = 1.0  # m per rad: see _nearest_view
 
     def __init__(self, config=None):
@@ -309,7 +323,7 @@ class Slam:
         if len(points) < 10 or not self.local_updates:
             return predicted
         window_xy, window_theta = self._tracking_window()
-        matcher = self._tracking_matcher(points, predicted, window_xy)
+        matcher = self._tracking_matcher(points, predicted, window_xy, window_theta)
         # A weak prior: it settles ties (a corridor's length) without outvoting the scan.
         result = matcher.match(points, predicted, window_xy, window_theta, prior_sigmas=(window_xy, window_theta))
         if result.score < self.config.match_min_score:
@@ -335,20 +349,25 @@ class Slam:
             config.odometry_error_heading * motion.distance + config.odometry_error_time * motion.seconds
         return min(3 * sigma_xy, config.match_window_max_xy), min(3 * sigma_theta, config.match_window_max_theta)
 
-    def _tracking_matcher(self, points, predicted, window_xy):
-        reach = float(np.max(np.hypot(points[:, 0], points[:, 1]))) + window_xy
+    def _tracking_matcher(self, points, predicted, window_xy, window_theta):
+        """A matcher over the part of the local map the points can fall on within the window: the
+        field is built afresh at each keyframe, and over a 180-degree scan's box rather than its
+        range's full circle it takes half the time or less."""
         resolution = self.config.match_resolution
-        need_low = np.floor((np.array(predicted[:2]) - reach) / resolution).astype(np.int64)
-        need_high = np.floor((np.array(predicted[:2]) + reach) / resolution).astype(np.int64)
+        need_low, need_high = searched_cells(points, predicted, window_xy, window_theta, resolution)
         cached = self._tracking
         if cached is not None and cached[3] == self._local_version and (need_low >= cached[1]).all() \
                 and (need_high <= cached[2]).all():
             return cached[0]
-        margin = int(math.ceil(1.5 / resolution))
+        margin = int(math.ceil(self.TRACKING_MAP_MARGIN / resolution))
         low, high = need_low - margin, need_high + margin
-        strength, offsets = self.local_grid.occupancy_strength(low, high - low + 1)
-        matcher = GridMatcher(likelihood_field(strength, offsets), low, resolution, levels=3)
-        self._tracking = (matcher, low, high, self._local_version)
+        size = high - low + 1
+        field = sparse_likelihood_field((size[1], size[0]), *self.local_grid.obstacles(low, size))
+        matcher = GridMatcher(field, low, resolution, levels=self.TRACKING_LEVELS)
+        # Near its edge the field misses obstacles beyond it (it spreads FIELD_RADIUS cells, the
+        # coarsest maxima span 2^levels): later scans may use only the inside.
+        edge = (1 << self.TRACKING_LEVELS) + FIELD_RADIUS
+        self._tracking = (matcher, low + edge, high - edge, self._local_version)
         return matcher
 
     # --- keyframes and the maps -----------------------------------------------------------
@@ -461,7 +480,8 @@ class Slam:
         if len(cloud) < 20:
             return
         matcher = self._submap_matcher(members, current, cloud)
-        result = matcher.match(cloud, current, config.loop_window_xy, config.loop_window_theta)
+        result = matcher.match(cloud, current, config.loop_window_xy, config.loop_window_theta,
+                               min_score=config.loop_min_score)
         if result.score < config.loop_min_score:
             return
         pose = matcher.refine(cloud, result.pose).pose
@@ -544,20 +564,22 @@ class Slam:
         return cloud
 
     def _submap_matcher(self, members, current, cloud):
+        """A matcher over the old keyframes' points where the cloud can fall in the loop search's
+        window, with room for the coarsest maxima's blocks and the field's spread."""
         resolution = self.config.match_resolution
-        reach = float(np.max(np.hypot(cloud[:, 0], cloud[:, 1]))) + self.config.loop_window_xy + 0.5
-        low = np.floor((np.array(current[:2]) - reach) / resolution).astype(np.int64)
-        size = np.full(2, int(math.ceil(2 * reach / resolution)) + 1)
+        low, high = searched_cells(cloud, current, self.config.loop_window_xy, self.config.loop_window_theta,
+                                   resolution)
+        margin = (1 << self.LOOP_LEVELS) + FIELD_RADIUS
+        low, high = low - margin, high + margin
+        size = high - low + 1
         hits = np.concatenate([transform_points(tuple(self.graph.poses[index]), self.keyframes[index].points)
                                for index in members])
         cells, sums, counts = hit_cells(hits, resolution)
         cells -= low
         inside = ((cells >= 0) & (cells < size)).all(axis=1)
-        strength = np.zeros((size[1], size[0]), dtype=np.float32)
-        offsets = np.zeros((size[1], size[0], 2), dtype=np.float32)
-        strength[cells[inside, 1], cells[inside, 0]] = 1.0
-        offsets[cells[inside, 1], cells[inside, 0]] = sums[inside] / counts[inside, None] - 0.5
-        return GridMatcher(likelihood_field(strength, offsets), low, resolution, levels=5)
+        field = sparse_likelihood_field((size[1], size[0]), cells[inside, 1], cells[inside, 0],
+                                        np.ones(inside.sum()), sums[inside] / counts[inside, None] - 0.5)
+        return GridMatcher(field, low, resolution, levels=self.LOOP_LEVELS)
 
     def _optimize(self):
         newest = len(self.keyframes) - 1
