@@ -50,6 +50,64 @@ def test_motion_model_moves_the_cloud_by_the_odometry_increment():
     assert particle_filter.particles[:, 1].std() == pytest.approx(math.sqrt(0.01), rel=0.1)  # rot1: alpha2 * trans^2
 
 
+def turned_with_a_short_move(params, turn, sideways):
+    particle_filter = ParticleFilter(*open_grid(), params=params, seed=1)
+    particle_filter.set_pose((2.0, 2.0, 0.0), np.diag([1e-6, 1e-6, 1e-6]))
+    particle_filter.apply_motion((0.0, 0.0, 0.0), (0.0, sideways, turn))
+    return particle_filter.particles
+
+
+def test_a_turn_with_a_few_centimetres_sideways_does_not_spread_the_heading_by_a_quarter_turn():
+    # rot1, trans, rot2 read a 0.5 rad turn that moved the base frame 5 cm sideways as a quarter
+    # turn, the move and a quarter turn back: the heading spread by 0.6 rad at alpha1 0.1 where
+    # the turn alone spreads it by sqrt(alpha1) * 0.5 = 0.16.
+    params = AmclParams(odom_alpha1=0.1, odom_alpha2=0.01, odom_alpha3=0.01, odom_alpha4=0.01)
+    turn = 0.5
+    heading = turned_with_a_short_move(params, turn, 0.05)[:, 2]
+    assert heading.mean() == pytest.approx(turn, abs=0.02)
+    assert heading.std() < 1.5 * math.sqrt(0.1) * turn
+    # The split still counts from odom_short_move on, and without it (0) at every length.
+    assert turned_with_a_short_move(params, turn, 0.1)[:, 2].std() > 3.0 * math.sqrt(0.1) * turn
+    split_always = turned_with_a_short_move(params._replace(odom_short_move=0.0), turn, 0.05)[:, 2]
+    assert split_always.std() == pytest.approx(0.6, abs=0.05)
+
+
+def test_a_turn_in_place_spreads_the_heading_by_alpha1_times_the_turn():
+    params = AmclParams(odom_alpha1=0.2, odom_alpha2=0.01, odom_alpha3=0.01, odom_alpha4=0.01)
+    for sideways in (0.0, 0.005, 0.02):
+        heading = turned_with_a_short_move(params, 1.0, sideways)[:, 2]
+        assert heading.std() == pytest.approx(math.sqrt(0.2), rel=0.1)
+
+
+def test_a_lost_filter_first_spreads_its_cloud_around_the_last_fitted_estimate_then_goes_global():
+    # From (2, 2) in the open grid's 4 m box the walls are 1.9 m / max(|cos|, |sin|) away: a
+    # scan that fits. Beams of 3.4 m in every direction fit from nowhere in it: a scan that does not.
+    occupied, info = open_grid()
+    params = AmclParams(min_particles=200, max_particles=1000, recovery_alpha_slow=0.0, recovery_alpha_fast=0.0)
+    particle_filter = ParticleFilter(occupied, info, params=params, seed=1)
+    particle_filter.set_pose((2.0, 2.0, 0.0), np.diag([1e-4, 1e-4, 1e-4]))
+    angles = np.linspace(-math.pi, math.pi, 90, endpoint=False)
+    fitting = 1.9 / np.maximum(np.abs(np.cos(angles)), np.abs(np.sin(angles)))
+    lost_updates = particle_filter.params.lost_updates
+    for _ in range(lost_updates):  # tracking: the beams fit lost_updates times in a row
+        particle_filter.update((0.0, 0.0, 0.0), fitting, angles)
+        particle_filter.last_odom = None  # the next scan updates the filter again
+    assert particle_filter.fit > 0.9
+    odom = (0.0, 0.0, 0.0)
+    for step in range(lost_updates):
+        odom = (0.0, 0.0, 0.3 * (step + 1))  # turning in place
+        assert particle_filter.update(odom, np.full(90, 3.4), angles)
+    assert (particle_filter.local_respreads, particle_filter.relocalizations) == (1, 0)
+    mean = particle_filter.particles.mean(axis=0)
+    assert math.hypot(mean[0] - 2.0, mean[1] - 2.0) < 0.1
+    assert particle_filter.estimate.pose[2] == pytest.approx(0.3 * lost_updates, abs=0.01)
+    assert particle_filter.particles[:, 0].std() == pytest.approx(particle_filter.params.lost_local_std_xy, rel=0.1)
+    for _ in range(lost_updates):
+        odom = (0.0, 0.0, odom[2] + 0.3)
+        particle_filter.update(odom, np.full(90, 3.4), angles)
+    assert (particle_filter.local_respreads, particle_filter.relocalizations) == (1, 1)
+
+
 def test_resampling_shrinks_a_converged_cloud_to_min_particles():
     occupied, info = open_grid()
     params = AmclParams(min_particles=200, max_particles=2000)

@@ -8,14 +8,15 @@
   between min_particles and max_particles;
 - recovery: random particles in free space when the short-term average likelihood falls
   below the long-term one (recovery_alpha_slow/fast, Augmented MCL), and a global
-  relocalisation that spreads max_particles over the whole free space on request.
+  relocalisation that spreads max_particles over the whole free space on request, or by
+  itself when the beams stop fitting the map (first a cloud spread around the estimate).
 """
 import math
 from typing import NamedTuple, Optional, Tuple
 
 import numpy as np
 
-from turtlebot3c_common.se2 import wrap_angle
+from turtlebot3c_common.se2 import compose, relative, wrap_angle
 
 from .grid_info import GridInfo
 from .likelihood_field import LikelihoodField
@@ -37,6 +38,9 @@ class AmclParams(NamedTuple):
     odom_alpha2: float = 0.1  # rotation noise from translation
     odom_alpha3: float = 0.1  # translation noise from translation
     odom_alpha4: float = 0.1  # translation noise from rotation
+    # m: below it the heading's noise fades from the rot1/rot2 split's to the net turn's
+    # (see apply_motion); 0: the split's at every length, as amcl above 1 cm.
+    odom_short_move: float = 0.1
     laser_max_beams: int = 180
     laser_min_range: float = -1.0  # <= 0: use the scan's own range_min
     laser_max_range: float = 3.5
@@ -60,6 +64,13 @@ class AmclParams(NamedTuple):
     lost_fit_distance: float = 0.2
     lost_fit: float = 0.4
     lost_updates: int = 8
+    # Before that global relocalisation, once per loss: a cloud around the last estimate the
+    # beams fitted, moved on by the odometry since, with these standard deviations (m, rad)
+    # plus the odometry's noise over that move (odom_alpha1..3). A slip or a turn the odometry
+    # misread leaves the cloud behind or turned, near the robot; on a large map a global
+    # relocalisation finds it again only hundreds of scans later. 0: straight to global.
+    lost_local_std_xy: float = 1.0
+    lost_local_std_yaw: float = 0.5
     initial_cov_xx: float = 0.5 * 0.5
     initial_cov_yy: float = 0.5 * 0.5
     initial_cov_aa: float = (math.pi / 12.0) ** 2
@@ -140,6 +151,11 @@ class ParticleFilter:
         self.fit = 1.0  # share of beams that fit the map from the estimate, last update
         self._lost_count = 0
         self.relocalizations = 0  # global relocalisations started because the robot was lost
+        self.local_respreads = 0  # clouds spread around the estimate because the robot was lost
+        self._local_tried = False  # since the beams last fitted
+        self._fitted = None  # (estimate, odometry) when the beams last fitted
+        self._fit_streak = 0
+        self._tracked = False  # the beams fitted lost_updates updates in a row since the last pose given
 
     @property
     def initialized(self) -> bool:
@@ -157,6 +173,10 @@ class ParticleFilter:
         samples += np.asarray(pose, dtype=float)
         samples[:, 2] = wrap_angle(samples[:, 2])
         self._reset(samples)
+        self._local_tried = False
+        self._fitted = None
+        self._fit_streak = 0
+        self._tracked = False
         self.estimate = Estimate(tuple(float(v) for v in pose), cov, 1.0)
 
     def global_localization(self):
@@ -164,6 +184,7 @@ class ParticleFilter:
         count = self.params.max_particles
         chosen = self.rng.randint(0, self._free_x.size, size=count)
         self._reset(self._random_free_poses(chosen))
+        self._tracked = False
         self.estimate = None
 
     def _random_free_poses(self, chosen):
@@ -207,8 +228,11 @@ class ParticleFilter:
         if self._updates % max(1, self.params.resample_interval) == 0:
             self.resample()
         if self._lost(ranges, angles, range_min, sensor_offset):
-            self.global_localization()
-            self.relocalizations += 1
+            if self._tracked and not self._local_tried and self.params.lost_local_std_xy > 0.0:
+                self._respread_locally(odom)
+            else:
+                self.global_localization()
+                self.relocalizations += 1
         return True
 
     def _lost(self, ranges, angles, range_min, sensor_offset) -> bool:
@@ -221,28 +245,74 @@ class ParticleFilter:
         distances = self.field.end_point_distances(self.estimate.pose, ranges, angles, sensor_offset)
         self.fit = float((distances < p.lost_fit_distance).mean())
         self._lost_count = self._lost_count + 1 if self.fit < p.lost_fit else 0
+        if self._lost_count == 0:
+            self._local_tried = False
+            self._fitted = (self.estimate.pose, tuple(self.last_odom))
+        # Only a filter that tracked (the beams fitted lost_updates updates in a row since the
+        # pose was last given or spread globally) is spread locally when lost: one given a wrong
+        # pose fits now and then by chance, and a cloud around it can settle on a look-alike
+        # nearby that the lost check then accepts (the house, from 1.8 m and 2 rad off).
+        self._fit_streak = self._fit_streak + 1 if self._lost_count == 0 else 0
+        self._tracked = self._tracked or self._fit_streak >= p.lost_updates
         return self._lost_count >= p.lost_updates
 
+    def _respread_locally(self, odom):
+        p = self.params
+        pose, fitted_odom = self._fitted
+        moved = relative(fitted_odom, tuple(odom))
+        distance, turn = math.hypot(moved[0], moved[1]), abs(moved[2])
+        var_xy = p.lost_local_std_xy ** 2 + p.odom_alpha3 * distance ** 2
+        var_yaw = p.lost_local_std_yaw ** 2 + p.odom_alpha1 * turn ** 2 + p.odom_alpha2 * distance ** 2
+        self.set_pose(compose(pose, moved), np.diag([var_xy, var_xy, var_yaw]))
+        self._fitted, self._tracked, self._local_tried = (pose, fitted_odom), True, True
+        self.local_respreads += 1
+
     def apply_motion(self, odom_from, odom_to):
-        """Move every particle by the odometry increment, with sampled noise."""
+        """Move every particle by the odometry increment, with sampled noise.
+
+        The increment is read as amcl's rot1, trans, rot2, each with its noise; the heading
+        takes the noise of both turns. For a move shorter than odom_short_move that split
+        means less and less: turning in place about a point a few centimetres off the base
+        frame moves the frame sideways, and rot1, trans, rot2 read that as a quarter turn, the
+        move and a quarter turn back (a 0.5 rad turn with a 5 cm sideways move spread the
+        heading by 0.6 rad at alpha1 0.1, against 0.16 for the turn alone; on a large map a
+        pose a quarter turn off then fitted the scan better than the truth). So below
+        odom_short_move the heading's noise fades, with the square of the move's length, from
+        the split's to the net turn's (amcl's pure rotation below 1 cm, made gradual); the
+        direction of the move keeps rot1's noise. A turn in place keeps alpha1 * turn^2."""
         p = self.params
         dx, dy = odom_to[0] - odom_from[0], odom_to[1] - odom_from[1]
         trans = math.hypot(dx, dy)
+        turn = wrap_angle(odom_to[2] - odom_from[2])
         rot1 = 0.0 if trans < 0.01 else wrap_angle(math.atan2(dy, dx) - odom_from[2])
-        rot2 = wrap_angle(odom_to[2] - odom_from[2] - rot1)
+        rot2 = wrap_angle(turn - rot1)
         # Driving backwards is not a half turn: noise follows the smaller angle.
         rot1_noise = min(abs(rot1), abs(wrap_angle(rot1 - math.pi)))
         rot2_noise = min(abs(rot2), abs(wrap_angle(rot2 - math.pi)))
         n = self.particles.shape[0]
         normal = self.rng.normal
-        rot1_hat = rot1 - normal(0.0, math.sqrt(p.odom_alpha1 * rot1_noise ** 2 + p.odom_alpha2 * trans ** 2), n)
+        rot1_error = normal(0.0, math.sqrt(p.odom_alpha1 * rot1_noise ** 2 + p.odom_alpha2 * trans ** 2), n)
         trans_hat = trans - normal(
             0.0, math.sqrt(p.odom_alpha3 * trans ** 2 + p.odom_alpha4 * (rot1_noise ** 2 + rot2_noise ** 2)), n)
-        rot2_hat = rot2 - normal(0.0, math.sqrt(p.odom_alpha1 * rot2_noise ** 2 + p.odom_alpha2 * trans ** 2), n)
-        heading = self.particles[:, 2] + rot1_hat
+        rot2_error = normal(0.0, math.sqrt(p.odom_alpha1 * rot2_noise ** 2 + p.odom_alpha2 * trans ** 2), n)
+        yaw = self.particles[:, 2]
+        heading = yaw + (rot1 - rot1_error)
         self.particles[:, 0] += trans_hat * np.cos(heading)
         self.particles[:, 1] += trans_hat * np.sin(heading)
-        self.particles[:, 2] = wrap_angle(heading + rot2_hat)
+        split = self._split_weight(trans)
+        if split >= 1.0:
+            self.particles[:, 2] = wrap_angle(heading + (rot2 - rot2_error))
+            return
+        turn_error = normal(0.0, math.sqrt(p.odom_alpha1 * turn ** 2 + p.odom_alpha2 * trans ** 2), n)
+        heading_error = split * (rot1_error + rot2_error) + math.sqrt(1.0 - split * split) * turn_error
+        self.particles[:, 2] = wrap_angle(yaw + turn - heading_error)
+
+    def _split_weight(self, trans) -> float:
+        """How much of the rot1/rot2 split's heading noise a move of `trans` m keeps (1: all)."""
+        short = self.params.odom_short_move
+        if short <= 0.0 or trans >= short:
+            return 1.0
+        return (trans / short) ** 2
 
     def select_beams(self, ranges, angles, range_min):
         """Valid beams (finite, within limits), evenly thinned to laser_max_beams."""
