@@ -16,7 +16,7 @@ from turtlebot3c_sim.simulation import NoiseConfig, Simulation
 from turtlebot3c_sim.world import load_world
 from turtlebot3c_slam.occupancy_grid import LogOddsGrid, trace_scan
 from turtlebot3c_slam.pose_graph import PoseGraph
-from turtlebot3c_slam.scan_matcher import GridMatcher, likelihood_field
+from turtlebot3c_slam.scan_matcher import GridMatcher, sparse_likelihood_field
 from turtlebot3c_slam.slam import Keyframe, LoopClosure, RedrawBudget, Slam, SlamConfig, check_slam_method
 from turtlebot3c_slam.slam_messages import mount_from_transform
 from turtlebot3c_slam.slam_scan import ScanGeometry, ScanRays, scan_rays
@@ -254,8 +254,8 @@ def test_matcher_finds_a_shifted_and_turned_scan():
     room = room_rays()
     grid.apply(trace_scan(room, (0.0, 0.0, 0.0), 0.025))
     low = np.array([-120, -120])
-    strength, offsets = grid.occupancy_strength(low, np.array([240, 240]))
-    matcher = GridMatcher(likelihood_field(strength, offsets), low, 0.025, levels=3)
+    matcher = GridMatcher(sparse_likelihood_field((240, 240), *grid.obstacles(low, np.array([240, 240]))),
+                          low, 0.025, levels=3)
     truth = (0.07, -0.04, 0.05)
     # The room seen from `truth` is the room's points moved by truth's inverse.
     points = transform_points(inverse(truth), room.hits)
@@ -273,8 +273,8 @@ def test_prior_keeps_the_predicted_position_along_a_featureless_corridor():
     grid = LogOddsGrid(0.025)
     grid.apply(trace_scan(rays, (0.0, 0.0, 0.0), 0.025))
     low = np.array([-160, -40])
-    strength, offsets = grid.occupancy_strength(low, np.array([320, 80]))
-    matcher = GridMatcher(likelihood_field(strength, offsets), low, 0.025, levels=3)
+    matcher = GridMatcher(sparse_likelihood_field((80, 320), *grid.obstacles(low, np.array([320, 80]))),
+                          low, 0.025, levels=3)
     prior = (0.03, 0.0, 0.0)
     result = matcher.match(rays.hits, prior, 0.1, 0.05, prior_sigmas=(0.05, 0.05))
     assert result.pose[0] == pytest.approx(0.03, abs=1e-9)

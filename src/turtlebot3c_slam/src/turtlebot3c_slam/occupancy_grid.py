@@ -213,23 +213,10 @@ class LogOddsGrid:
         """Indices of lattice cells (N, 2), inside the arrays, into the arrays flattened (views)."""
         return (cells[:, 1] - self.offset[1]) * self.log_odds.shape[1] + (cells[:, 0] - self.offset[0])
 
-    def occupancy_strength(self, low, size):
-        """Obstacle evidence over the lattice window low (i, j), size (w, h), for scan matching.
-
-        Returns (strength, offsets): strength in [0, 1] per cell (0 for free, unknown and
-        outside), offsets (h, w, 2) from each cell's centre to the mean of its hits, in cells.
-        """
-        strength = np.zeros((size[1], size[0]), dtype=np.float32)
-        offsets = np.zeros((size[1], size[0], 2), dtype=np.float32)
-        rows, cols, values, hit_offsets = self.obstacles(low, size)
-        strength[rows, cols] = values
-        offsets[rows, cols] = hit_offsets
-        return strength, offsets
-
     def obstacles(self, low, size):
-        """The cells of the lattice window low (i, j), size (w, h) that hold obstacle evidence, as
-        occupancy_strength gives them but without the window's free and unknown cells: their rows
-        and columns in the window, strength in (0, 1] and offsets (K, 2) to the mean of their hits."""
+        """The cells of the lattice window low (i, j), size (w, h) that hold obstacle evidence, for
+        scan matching: their rows and columns in the window, strength in (0, 1] (one net hit is
+        full evidence) and offsets (K, 2), in cells, from their centres to the mean of their hits."""
         height, width = self.log_odds.shape
         src_low = np.maximum(low, self.offset)
         src_high = np.minimum(low + size, self.offset + (width, height))

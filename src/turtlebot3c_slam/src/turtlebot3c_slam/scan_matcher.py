@@ -39,25 +39,16 @@ def swept_bounds(points, pose, window_xy, window_theta):
     return np.array([laid_x.min(), laid_y.min()]) - slack, np.array([laid_x.max(), laid_y.max()]) + slack
 
 
-def likelihood_field(strength, offsets=None, sigma_cells=1.0, radius=FIELD_RADIUS):
-    """How well a point in each cell agrees with the obstacles (strength in [0, 1] per cell).
-
-    Each obstacle cell spreads its strength to the cells around with a Gaussian fall-off in
-    the distance from their centres to where its hits were (`offsets` (h, w, 2), in cells,
-    from the obstacle cell's centre; default the centre); a cell keeps the largest value.
-    Sampled at cell centres and interpolated, the field peaks where the hits were, not at
-    the centres of their cells, so matching is not biased by the grid.
-    """
-    rows, cols = np.nonzero(strength > 0)
-    hit_offsets = np.zeros((len(rows), 2), dtype=np.float32) if offsets is None else offsets[rows, cols]
-    return sparse_likelihood_field(strength.shape, rows, cols, strength[rows, cols], hit_offsets, sigma_cells,
-                                   radius)
-
-
 def sparse_likelihood_field(shape, rows, cols, strength, offsets, sigma_cells=1.0, radius=FIELD_RADIUS):
-    """likelihood_field of a window `shape` (h, w) given only its obstacle cells (rows, cols), their
-    strength in (0, 1] and offsets (K, 2). The work grows with the obstacle cells, not the window:
-    a map is mostly free and unknown space."""
+    """How well a point in each cell of a window `shape` (h, w) agrees with its obstacle cells
+    (rows, cols), of strength in (0, 1] and with offsets (K, 2), in cells, from their centres to
+    where their hits were.
+
+    Each obstacle cell spreads its strength to the cells around with a Gaussian fall-off in the
+    distance from their centres to where its hits were; a cell keeps the largest value. Sampled
+    at cell centres and interpolated, the field peaks where the hits were, not at the centres of
+    their cells, so matching is not biased by the grid. The work grows with the obstacle cells,
+    not the window: a map is mostly free and unknown space."""
     height, width = shape
     values = np.asarray(strength).astype(np.float32)
     hit_x, hit_y = offsets[:, 0].astype(np.float32), offsets[:, 1].astype(np.float32)
