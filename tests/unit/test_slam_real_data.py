@@ -62,3 +62,14 @@ def test_slam_on_real_scans_with_severe_odometry_stays_close_to_the_reference_wi
     assert ours.translation < 0.08 and ours.rotation < 0.8, ours
     assert ours.translation < 0.1 * odometry.translation, (ours, odometry)
     assert ours.false_closures == 0, run.closures
+
+
+def test_slam_tracks_sparse_real_scans_that_each_see_much_new_ground():
+    """orebro: 180-degree scans 1-3 m and up to 40 degrees apart. A right match there scores
+    0.08-0.2, as much of each scan falls where the map has seen nothing yet; a threshold of 0.2
+    left one scan in eight on odometry's guess (0.28 m / 6.6 degrees, severe odometry)."""
+    log = load_log("orebro")
+    run = run_slam(log, "severe", seed=1)
+    ours = score(log, run.trajectory, run.closures)
+    assert ours.translation < 0.2 and ours.rotation < 2.5, ours
+    assert ours.false_closures == 0, run.closures

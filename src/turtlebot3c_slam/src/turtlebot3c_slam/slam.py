@@ -93,7 +93,9 @@ class SlamConfig:
         ("odometry_error_time", 0.01),    # m and rad per s (a slipping wheel)
         ("match_window_max_xy", 1.0),     # m
         ("match_window_max_theta", 0.7),  # rad
-        ("match_min_score", 0.2),         # below: keep odometry, and search wider next scan
+        # Below: keep odometry, and search wider next scan. A blinded LIDAR's garbage scores
+        # 0.01-0.03; a right match of sparse real scans that see much new ground, 0.08-0.2.
+        ("match_min_score", 0.1),
         ("match_points", 300),            # at most this many scan points are matched
         ("loop_search_radius", 3.0),      # m between a new keyframe and an old one to try closing
         ("loop_min_travel", 6.0),         # m of path between them
