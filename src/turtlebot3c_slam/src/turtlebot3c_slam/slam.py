@@ -76,7 +76,9 @@ class SlamConfig:
     DEFAULTS = collections.OrderedDict([
         ("resolution", 0.05),             # m per cell of the published map
         ("match_resolution", 0.025),      # m per cell of the maps scans are matched against
-        ("usable_range", 8.0),            # m; hits beyond count as free rays up to here
+        # m; hits beyond count as free rays up to here. A convention hall's walls are half of
+        # its hits and mostly 8-16 m off; the LDS-01/02 reach less than this anyway.
+        ("usable_range", 16.0),
         ("hit_log_odds", 0.85),
         ("free_log_odds", -0.4),
         ("keyframe_distance", 0.2),       # m of motion between keyframes
