@@ -88,12 +88,13 @@ def trace_scan(rays, pose, resolution, cell_shift=0.0, walls=None):
     reach = ends - origin
     samples = np.maximum(np.ceil(np.hypot(reach[:, 0], reach[:, 1]) / step).astype(np.int64), 1)
     starts = np.cumsum(samples) - samples
-    fraction = np.arange(samples.sum()) - np.repeat(starts, samples)
-    fraction = fraction / np.repeat(samples, samples)
-    cols = _sampled_cells(origin[0], np.repeat(reach[:, 0], samples), fraction, resolution, cell_shift)
-    rows = _sampled_cells(origin[1], np.repeat(reach[:, 1], samples), fraction, resolution, cell_shift)
+    ray = np.repeat(np.arange(len(ends)), samples)  # the ray of each sample
+    fraction = np.arange(len(ray)) - starts[ray]
+    fraction = fraction / samples[ray]
+    cols = _sampled_cells(origin[0], reach[ray, 0], fraction, resolution, cell_shift)
+    rows = _sampled_cells(origin[1], reach[ray, 1], fraction, resolution, cell_shift)
     if walls is not None and len(rays.free_ends):
-        before = _before_walls(cols, rows, starts[len(hits)], starts, samples, walls)
+        before = _before_walls(cols, rows, starts[len(hits)], starts, ray, walls)
         cols, rows = cols[before], rows[before]
     free_cells = _crossed_cells(cols, rows, hit_cells_) if len(cols) else np.empty((0, 2), np.int64)
     return CellUpdate(free_cells, hit_cells_, hit_sums, hit_counts)
@@ -109,14 +110,15 @@ def _sampled_cells(start, reach, fraction, resolution, cell_shift):
     return np.floor(values, out=values).astype(np.int64)
 
 
-def _before_walls(cols, rows, first_checked, starts, samples, walls):
-    """Which samples (cells along rays, each ray's from its origin out) lie before the first
-    sample of their ray that is a wall; only samples from `first_checked` on can be walls."""
+def _before_walls(cols, rows, first_checked, starts, ray, walls):
+    """Which samples (cells along rays, each ray's from its origin out; `ray` numbers their rays)
+    lie before the first sample of their ray that is a wall; only samples from `first_checked` on
+    can be walls."""
     wall = np.zeros(len(cols), dtype=bool)
     wall[first_checked:] = walls(np.column_stack((cols[first_checked:], rows[first_checked:])))
     walls_so_far = np.cumsum(wall)
     walls_before_ray = (walls_so_far - wall)[starts]
-    return walls_so_far == np.repeat(walls_before_ray, samples)
+    return walls_so_far == walls_before_ray[ray]
 
 
 def _crossed_cells(cols, rows, hits):
