@@ -140,9 +140,10 @@ def test_slam_keeps_a_wall_that_later_scans_see_no_echo_from():
     geometry = ScanGeometry(-math.pi / 4, math.pi / 2 / 179, 180, 0.1, 10.0)
     angles = -math.pi / 4 + np.arange(180) * math.pi / 2 / 179
     slam.add_scan(0.0, 1.0 / np.cos(angles), geometry, (0.0, 0.0, 0.0))
+    turn = 1.5 * slam.config.keyframe_angle
     for step in range(1, 6):  # turning on the spot, a keyframe each time, the wall now unseen
         slam.add_scan(float(step), np.full(180, np.inf), geometry, (0.0, 0.0, 0.05 * step * (-1) ** step))
-        slam.add_scan(step + 0.5, np.full(180, np.inf), geometry, (0.0, 0.0, 0.3 * (-1) ** step))
+        slam.add_scan(step + 0.5, np.full(180, np.inf), geometry, (0.0, 0.0, turn * (-1) ** step))
     assert len(slam.keyframes) > 3
     occupancy = slam.occupancy_map()
     assert cell_state(occupancy, 1.0, 0.0) == 100 and cell_state(occupancy, 1.0, 0.5) == 100
@@ -183,12 +184,13 @@ def test_the_local_map_covers_the_last_keyframes_not_the_whole_path():
     with np.errstate(divide="ignore"):
         ranges = np.where(np.sin(angles) != 0, np.abs(1.0 / np.sin(angles)), np.inf)  # walls at y = +-1
     slam = Slam()
-    for step in range(240):  # 60 m along the corridor
-        slam.add_scan(float(step), ranges, geometry, (0.25 * step, 0.0, 0.0))
     config = slam.config
+    step_length = 1.25 * config.keyframe_distance  # every scan a keyframe
+    for step in range(240):  # 240 keyframes along the corridor
+        slam.add_scan(float(step), ranges, geometry, (step_length * step, 0.0, 0.0))
     growth = 2 * LogOddsGrid.GROWTH * config.match_resolution
     reach = min(config.usable_range, geometry.range_max)
-    span = config.local_map_keyframes * 0.25 + 2 * reach + growth
+    span = config.local_map_keyframes * step_length + 2 * reach + growth
     assert len(slam.keyframes) > 200
     assert slam.local_grid.shape[1] * config.match_resolution < span < 40.0
 
