@@ -1,8 +1,10 @@
 """The SLAM core: geometry, grids, matching, pose graph, and whole runs in the simulator against ground truth."""
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from turtlebot3c_common.se2 import compose, interpolate_pose, inverse, relative, transform_points
 from turtlebot3c_sim.evaluation import (
@@ -133,6 +135,15 @@ def test_a_ray_with_no_return_never_clears_a_wall_nor_what_lies_behind_it():
     for _ in range(5):
         unguarded.apply(trace_scan(blind, (0.0, 0.0, 0.0), 0.05))
     assert cell_state(unguarded.to_occupancy_map(), 1.01, 0.0) == 0
+
+
+SHIPPED_CONFIG = Path(__file__).resolve().parents[2] / "src" / "turtlebot3c_slam" / "config" / "slam.yaml"
+
+
+def test_the_shipped_config_states_every_parameter_at_the_code_defaults():
+    """The node loads config/slam.yaml; the unit tests run SlamConfig(): they must be one SLAM."""
+    shipped = yaml.safe_load(SHIPPED_CONFIG.read_text())
+    assert shipped == dict(SlamConfig().as_dict())
 
 
 def test_slam_keeps_a_wall_that_later_scans_see_no_echo_from():
