@@ -16,6 +16,7 @@ from turtlebot3c_sim.evaluation import (
 )
 from turtlebot3c_sim.simulation import NoiseConfig, Simulation
 from turtlebot3c_sim.world import load_world
+from turtlebot3c_slam.line_icp import LineCloud, align
 from turtlebot3c_slam.occupancy_grid import LogOddsGrid, trace_scan
 from turtlebot3c_slam.pose_graph import PoseGraph
 from turtlebot3c_slam.scan_matcher import GridMatcher, sparse_likelihood_field
@@ -387,6 +388,33 @@ def test_a_loop_closure_the_two_keyframes_own_scans_contradict_is_refused():
     assert slam._keyframes_agree(closure(truth))
     assert not slam._keyframes_agree(closure(compose(truth, (0.4, 0.0, 0.0))))
     assert not slam._keyframes_agree(closure(compose(truth, (0.0, 0.0, 0.05))))
+
+
+def corridor_with_doors_points(x_from, x_to, pose):
+    """Points every 2.5 cm on a corridor's walls (y = +-1) between x_from and x_to, with a door
+    0.4 m wide every metre, seen from `pose`."""
+    along = np.arange(x_from, x_to, 0.025)
+    wall = along[np.mod(along, 1.0) < 0.6]
+    walls = np.concatenate((np.column_stack((wall, np.full_like(wall, 1.0))),
+                            np.column_stack((wall, np.full_like(wall, -1.0)))))
+    return transform_points(inverse(pose), walls)
+
+
+def test_a_loop_closure_in_a_corridor_whose_doors_repeat_is_refused():
+    """In a corridor whose doors repeat, two keyframes' scans fit as well one door apart: ICP
+    from a closure's pose agrees with it, and only a start further along shows the other fit."""
+    slam = Slam()
+    old_pose, new_pose = (0.0, 0.0, 0.0), (1.0, 0.0, 0.0)
+    geometry = ScanGeometry(-math.pi, 0.01, 628, 0.0, math.inf)
+    old_hits = corridor_with_doors_points(-8.0, 8.0, old_pose)
+    new_hits = corridor_with_doors_points(-5.0, 7.0, new_pose)
+    slam.keyframes = [Keyframe(0.0, ScanRays(geometry, old_hits, np.zeros((0, 2))), old_hits[::4], 0.0),
+                      Keyframe(10.0, ScanRays(geometry, new_hits, np.zeros((0, 2))), new_hits[::4], 50.0)]
+    one_door_short = (0.0, 0.0, 0.0)
+    closure = LoopClosure(0, 1, one_door_short, 0.9, (0.0, 0.0, 0.0), new_pose)
+    aligned, _ = align(LineCloud(old_hits), new_hits, one_door_short)
+    assert slam._within_check(aligned, one_door_short)  # the scans alone agree with the look-alike
+    assert not slam._keyframes_agree(closure)
 
 
 def test_a_loop_closure_between_keyframes_that_overlap_too_little_to_judge_is_refused():

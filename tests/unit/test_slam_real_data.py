@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from benchmarks import scan_consistency
 from testkit.real_data import load_log, run_slam, score
 from turtlebot3c_common.se2 import compose, relative
 from turtlebot3c_sim.evaluation import false_relations, relative_pose_errors
@@ -83,3 +84,15 @@ def test_slam_tracks_an_open_hall_by_walls_beyond_8_m():
     ours = score(log, run.trajectory, run.closures)
     assert ours.translation < 0.1 and ours.rotation < 0.75, ours
     assert ours.false_closures == 0, run.closures
+
+
+def test_slam_closes_no_loop_to_a_look_alike_stretch_of_a_long_corridor():
+    """infinite-corridor, odometry seed 3: scan 363 was joined to scan 222 half a metre along
+    the corridor from where their scans fit best; ICP from the closure's pose had stopped
+    where a few door frames lined up, and agreed with it. Judged by the scans themselves, as
+    the benchmark does: the reference there is itself 0.2 m off what the scans say."""
+    log = load_log("infinite-corridor", 370)
+    run = run_slam(log, "severe", seed=3)
+    assert scan_consistency.false_by_scans(scan_consistency.ScanSet(log), run.closures, log.reference) == 0, \
+        run.closures
+    assert len(run.closures) >= 20, "the corridor's other loops still close"

@@ -18,6 +18,7 @@ PAIR_DISTANCE = 0.2     # m: a point farther from the target has no partner ther
 HUBER = 0.03            # m
 MIN_PAIRS = 50
 ITERATIONS = 30
+ON_LINE = 0.05          # m: a point this close to its partner's line lies on it
 
 
 class LineCloud:
@@ -42,6 +43,12 @@ class LineCloud:
         return near, normals, residuals
 
 
+    def points_on_lines(self, points, pose):
+        """How many of `points` (their own frame), laid at `pose`, lie on the target's lines."""
+        paired = self.pairs(transform_points(tuple(pose), points))
+        return 0 if paired is None else int((np.abs(paired[2]) < ON_LINE).sum())
+
+
 def _normals(points, tree):
     if len(points) < NORMAL_NEIGHBOURS:
         return np.zeros_like(points)
@@ -51,13 +58,13 @@ def _normals(points, tree):
     return vectors[:, :, 0]  # the direction of least spread: across the line
 
 
-def align(target, points, start):
+def align(target, points, start, iterations=ITERATIONS):
     """The pose (x, y, theta) of `points` (their own frame) in `target`'s frame that lays them on
     its lines, from `start`, and the Gauss-Newton Hessian there (in the target's frame, per m^2 of
     residual); None when too few points find a partner."""
     pose = np.array(start, dtype=np.float64)
     hessian = None
-    for _ in range(ITERATIONS):
+    for _ in range(iterations):
         paired = target.pairs(transform_points(tuple(pose), points))
         if paired is None:
             return None
