@@ -76,7 +76,7 @@ class SlamConfig:
 
     DEFAULTS = collections.OrderedDict([
         ("resolution", 0.05),             # m per cell of the published map
-        ("match_resolution", 0.025),      # m per cell of the maps scans are matched against
+        ("match_resolution", 0.025),      # m per cell of the local map scans are tracked against
         # m; hits beyond count as free rays up to here. A convention hall's walls are half of
         # its hits and mostly 8-16 m off; the LDS-01/02 reach less than this anyway.
         ("usable_range", 16.0),
@@ -106,6 +106,9 @@ class SlamConfig:
         ("loop_min_travel", 6.0),         # m of path between them
         ("loop_window_xy", 1.0),          # m, loop-closure search half-width
         ("loop_window_theta", 0.35),      # rad
+        # m per cell of the loop search's submap. Its old keyframes sit a few cm off each other
+        # after a long loop; at 2.5 cm a right match scored too little (acapulco: no loop closed).
+        ("loop_match_resolution", 0.05),
         ("loop_min_score", 0.55),         # mean likelihood needed to consider a closure
         ("loop_check_xy", 0.1),           # m: the two keyframes' own scans must agree this well...
         ("loop_check_theta", 0.02),       # rad: ...with a closure's relative pose between them
@@ -598,7 +601,7 @@ class Slam:
     def _submap_matcher(self, members, current, cloud):
         """A matcher over the old keyframes' points where the cloud can fall in the loop search's
         window, with room for the coarsest maxima's blocks and the field's spread."""
-        resolution = self.config.match_resolution
+        resolution = self.config.loop_match_resolution
         low, high = searched_cells(cloud, current, self.config.loop_window_xy, self.config.loop_window_theta,
                                    resolution)
         margin = (1 << self.LOOP_LEVELS) + FIELD_RADIUS
