@@ -32,7 +32,6 @@ FLOOR_RADIUS = 3.0      # m: scans this close are matched for the floor...
 FLOOR_TURN = 1.0        # rad: ...unless they look in directions this different (little overlap)
 FLOOR_SPACING = 0.5     # m: a dense log is thinned to scans this far apart for the floor (cost)
 ICP_SIGMA = 0.01        # m, a SICK's range noise: scales each match's information
-FIT_TOLERANCE = 0.05    # m: a point this close to the other scan's line lies on it
 REFERENCE_INFORMATION = np.diag([1.0, 1.0, 100.0])  # 1 m, 0.1 rad: weak next to any ICP match
 
 
@@ -137,8 +136,7 @@ def best_alignment(scans, i, j, starts):
         matched = match(scans, i, j, start)
         if matched is None:
             continue
-        paired = scans.pairs(i, j, matched[0])
-        fit = int((np.abs(paired[2]) < FIT_TOLERANCE).sum()) if paired is not None else 0
+        fit = scans.clouds[i].points_on_lines(scans.clouds[j].points, matched[0])
         if fit > best_fit:
             best, best_fit = matched[0], fit
     return best

@@ -42,7 +42,6 @@ class LineCloud:
         residuals = np.sum((laid[near] - self.points[partner[near]]) * normals, axis=1)
         return near, normals, residuals
 
-
     def points_on_lines(self, points, pose):
         """How many of `points` (their own frame), laid at `pose`, lie on the target's lines."""
         paired = self.pairs(transform_points(tuple(pose), points))
