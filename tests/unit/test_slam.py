@@ -1,11 +1,11 @@
 """The SLAM core: geometry, grids, matching, pose graph, and whole runs in the simulator against ground truth."""
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 
+from testkit.real_data import SHIPPED_SLAM_CONFIG
 from turtlebot3c_common.se2 import compose, interpolate_pose, inverse, relative, transform_points
 from turtlebot3c_sim.evaluation import (
     ROUTES,
@@ -138,12 +138,9 @@ def test_a_ray_with_no_return_never_clears_a_wall_nor_what_lies_behind_it():
     assert cell_state(unguarded.to_occupancy_map(), 1.01, 0.0) == 0
 
 
-SHIPPED_CONFIG = Path(__file__).resolve().parents[2] / "src" / "turtlebot3c_slam" / "config" / "slam.yaml"
-
-
 def test_the_shipped_config_states_every_parameter_at_the_code_defaults():
     """The node loads config/slam.yaml; the unit tests run SlamConfig(): they must be one SLAM."""
-    shipped = yaml.safe_load(SHIPPED_CONFIG.read_text())
+    shipped = yaml.safe_load(SHIPPED_SLAM_CONFIG.read_text())
     assert shipped == dict(SlamConfig().as_dict())
 
 
