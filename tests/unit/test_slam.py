@@ -185,6 +185,22 @@ def test_a_scan_that_matches_poorly_never_becomes_a_keyframe_unless_poor_ones_go
     assert slam.poor_matches == 2 and len(slam.keyframes) == keyframes + 1  # lost for good: map on
 
 
+def test_a_slip_further_than_the_tracking_window_is_found_by_a_second_wider_search():
+    """A wheel slip can throw the robot further than 3 sigma of odometry's error: the match
+    around the prediction is poor, and the scan is searched again over the widest window rather
+    than left at odometry's guess."""
+    geometry = ScanGeometry(-math.pi, 2 * math.pi / 360, 360, 0.1, 10.0)
+    angles = -math.pi + np.arange(360) * 2 * math.pi / 360
+    slam = Slam()
+    for step in range(3):
+        pose = (0.3 * step - 0.6, 0.0, 0.0)
+        slam.add_scan(float(step), room_ranges(pose, angles), geometry, pose)
+    slipped = (0.7, 0.4, 0.0)  # odometry says (0.3, 0, 0): 0.57 m off, the window is 0.2 m
+    tracked = slam.add_scan(3.0, room_ranges(slipped, angles), geometry, (0.3, 0.0, 0.0))
+    assert slam.poor_matches == 0
+    assert math.hypot(tracked[0] - slipped[0], tracked[1] - slipped[1]) < 0.03 and abs(tracked[2]) < 0.01
+
+
 def test_the_local_map_covers_the_last_keyframes_not_the_whole_path():
     """A long corridor must not leave the fine tracking grid as long as the corridor (gigabytes
     on a kilometre of real corridor): it holds the last local_map_keyframes, so its size too."""

@@ -16,7 +16,8 @@ How it works:
   turn and time since the last good match (a real robot's wheels slip, scans may come a
   metre apart). The correlative search (scan_matcher, branch and bound) finds the cell and
   angle step; a Gauss-Newton step on the interpolated field refines it below a cell. A poor
-  match (score below `match_min_score`) keeps odometry, and the next scan searches wider; it
+  match (score below `match_min_score`) is searched again over the widest window (a slip);
+  if that is poor too, the scan keeps odometry, and the next scan searches wider. It
   does not become a keyframe either (unless poor matches go on), so a guessed pose never
   draws the local map that the next scans match against.
 - *Keyframes*: after `keyframe_distance` metres or `keyframe_angle` radians, the scan becomes
@@ -334,10 +335,13 @@ class Slam:
     def _track(self, points, predicted):
         if len(points) < 10 or not self.local_updates:
             return predicted
-        window_xy, window_theta = self._tracking_window()
-        matcher = self._tracking_matcher(points, predicted, window_xy, window_theta)
-        # A weak prior: it settles ties (a corridor's length) without outvoting the scan.
-        result = matcher.match(points, predicted, window_xy, window_theta, prior_sigmas=(window_xy, window_theta))
+        matcher, result = self._search(points, predicted, *self._tracking_window())
+        if result.score < self.config.match_min_score:
+            # A slip can throw the robot further than 3 sigma (fhw, severe: 0.44 m sideways in
+            # one scan against a 0.31 m window, and the guess drawn into the map turned the rest
+            # of the log 12 degrees): before keeping odometry, search the widest window once.
+            matcher, result = self._search(points, predicted, self.config.match_window_max_xy,
+                                           self.config.match_window_max_theta)
         if result.score < self.config.match_min_score:
             self.poor_matches += 1
             self._poor_streak += 1
@@ -345,6 +349,13 @@ class Slam:
         self._poor_streak = 0
         self._unmatched = UnmatchedMotion(self._unmatched.stamp)
         return matcher.refine(points, result.pose).pose
+
+    def _search(self, points, predicted, window_xy, window_theta):
+        """The tracking map's best match for the points within the window around `predicted`."""
+        matcher = self._tracking_matcher(points, predicted, window_xy, window_theta)
+        # A weak prior: it settles ties (a corridor's length) without outvoting the scan.
+        return matcher, matcher.match(points, predicted, window_xy, window_theta,
+                                      prior_sigmas=(window_xy, window_theta))
 
     def _may_add_keyframe(self):
         """Not from a scan that matched poorly: its pose is odometry's guess, and drawn into the
