@@ -403,11 +403,11 @@ def test_a_loop_closure_the_two_keyframes_own_scans_contradict_is_refused():
     assert not slam._keyframes_agree(closure(compose(truth, (0.0, 0.0, 0.05))))
 
 
-def corridor_with_doors_points(x_from, x_to, pose):
+def corridor_with_doors_points(x_from, x_to, pose, period=1.0, door=0.4):
     """Points every 2.5 cm on a corridor's walls (y = +-1) between x_from and x_to, with a door
-    0.4 m wide every metre, seen from `pose`."""
+    `door` m wide every `period` metres, seen from `pose`."""
     along = np.arange(x_from, x_to, 0.025)
-    wall = along[np.mod(along, 1.0) < 0.6]
+    wall = along[np.mod(along, period) < period - door]
     walls = np.concatenate((np.column_stack((wall, np.full_like(wall, 1.0))),
                             np.column_stack((wall, np.full_like(wall, -1.0)))))
     return transform_points(inverse(pose), walls)
@@ -428,6 +428,32 @@ def test_a_loop_closure_in_a_corridor_whose_doors_repeat_is_refused():
     aligned, _ = align(LineCloud(old_hits), new_hits, one_door_short)
     assert slam._within_check(aligned, one_door_short)  # the scans alone agree with the look-alike
     assert not slam._keyframes_agree(closure)
+
+
+def test_a_loop_closure_probes_for_look_alikes_as_far_as_its_search_reached():
+    """After a long drift the loop search reaches metres along a corridor, and so may a
+    look-alike: a corridor whose wide doors repeat every 3 m fits as well one door further on."""
+    slam = Slam()
+    old_pose, new_pose = (0.0, 0.0, 0.0), (3.0, 0.0, 0.0)
+    geometry = ScanGeometry(-math.pi, 0.01, 628, 0.0, math.inf)
+    old_hits = corridor_with_doors_points(-12.0, 12.0, old_pose, period=3.0, door=0.8)
+    new_hits = corridor_with_doors_points(-6.0, 9.0, new_pose, period=3.0, door=0.8)
+    slam.keyframes = [Keyframe(0.0, ScanRays(geometry, old_hits, np.zeros((0, 2))), old_hits[::4], 0.0),
+                      Keyframe(10.0, ScanRays(geometry, new_hits, np.zeros((0, 2))), new_hits[::4], 50.0)]
+    one_door_short = LoopClosure(0, 1, (0.0, 0.0, 0.0), 0.9, (0.0, 0.0, 0.0), new_pose)
+    assert slam._keyframes_agree(one_door_short, window=1.0)  # a metre's probes cannot tell
+    assert not slam._keyframes_agree(one_door_short, window=3.5)
+
+
+def test_the_loop_search_widens_with_the_path_since_the_last_closure_up_to_its_max():
+    slam = Slam()
+    config = slam.config
+    paths = np.array([10.0, 100.0, 1000.0])  # m of path back to three old keyframes
+    assert slam._loop_windows(paths, 1000.0) == pytest.approx(
+        [config.loop_window_xy, config.loop_drift * 100.0, config.loop_window_max_xy])
+    slam._travel_at_last_closure = 950.0  # a loop closed 50 m ago: the map drifted since then only
+    assert slam._loop_windows(paths, 1000.0) == pytest.approx(
+        [config.loop_window_xy, config.loop_drift * 50.0, config.loop_drift * 50.0])
 
 
 def test_a_loop_closure_between_keyframes_that_overlap_too_little_to_judge_is_refused():
@@ -457,6 +483,8 @@ def test_unknown_or_bad_slam_parameters_are_rejected_with_their_names():
         SlamConfig(resolution=0)
     with pytest.raises(ValueError, match="local_map_keyframes must be a positive integer"):
         SlamConfig(local_map_keyframes=2.5)
+    with pytest.raises(ValueError, match="loop_window_max_xy .* must be at least loop_window_xy"):
+        SlamConfig(loop_window_xy=2.0, loop_window_max_xy=1.0)
 
 
 def test_slam_methods_map_to_upstream_node_names_and_unknown_ones_list_the_known():

@@ -25,13 +25,16 @@ How it works:
 - *Loop closure*: a new keyframe near an old part of the trajectory (more than
   `loop_min_travel` metres of path ago, within `loop_search_radius`) is matched, with the
   last few keyframes' points, against a submap built from the old keyframes around there,
-  over a wide window (branch and bound keeps that fast). The closure's edge joins the newest
+  over a wide window (branch and bound keeps that fast). The map drifts while no loop closes:
+  the window, and how far off an old keyframe may be, grow by `loop_drift` per metre of path
+  since the last closure (up to `loop_window_max_xy`), so that a loop a few hundred metres
+  long still closes. The closure's edge joins the newest
   keyframe to the old one nearest: a good match must also put those two where their own
   scans, aligned directly (point-to-line ICP, line_icp), agree within `loop_check_*`, for an
   old keyframe that sits a little wrong among its neighbours would make the edge wrong by as
   much though the match was right; two keyframes that overlap too little to judge close no
-  loop, nor do two whose scans, aligned from a metre further along a corridor, fit as well
-  there. A good match is even then only a candidate:
+  loop, nor do two whose scans, aligned from further along a corridor (a metre, or as far as
+  the search reached), fit almost as well there. A good match is even then only a candidate:
   corridors that look alike fool one match, so a closure is taken when a second one, within
   `loop_pending_keyframes`, moves the map the same way; both become robust edges and the
   graph is optimised, and an accepted closure the optimised graph still contradicts by more
@@ -105,7 +108,12 @@ class SlamConfig:
         ("match_points", 300),            # at most this many scan points are matched
         ("loop_search_radius", 3.0),      # m between a new keyframe and an old one to try closing
         ("loop_min_travel", 6.0),         # m of path between them
-        ("loop_window_xy", 1.0),          # m, loop-closure search half-width
+        ("loop_window_xy", 1.0),          # m, loop-closure search half-width, at least
+        # m per m of path since the last closure (or since the old keyframe, if less): how far
+        # the map may drift while no loop closes. The search widens by as much, up to the max;
+        # aces, fhw and infinite-corridor drifted 3-10 m between closures at 1-3 %.
+        ("loop_drift", 0.03),
+        ("loop_window_max_xy", 5.0),      # m
         ("loop_window_theta", 0.35),      # rad
         # m per cell of the loop search's submap. Its old keyframes sit a few cm off each other
         # after a long loop; at 2.5 cm a right match scored too little (acapulco: no loop closed).
@@ -147,6 +155,9 @@ class SlamConfig:
             setattr(self, name, value)
         if self.free_log_odds >= 0:
             raise ValueError(f"SLAM parameter free_log_odds must be negative, got {self.free_log_odds!r}")
+        if self.loop_window_max_xy < self.loop_window_xy:
+            raise ValueError(f"SLAM parameter loop_window_max_xy ({self.loop_window_max_xy!r}) must be at least "
+                             f"loop_window_xy ({self.loop_window_xy!r})")
 
     @classmethod
     def from_dict(cls, values):
@@ -251,8 +262,17 @@ class Slam:
     TRACKING_LEVELS = 3  # coarser maxima grids of the tracking search's branch and bound
     LOOP_LEVELS = 5      # and of the loop-closure search's, over its wider window
     VIEW_TURN_WEIGHT = 1.0  # m per rad: see _nearest_view
-    ALIAS_SHIFTS = (-1.0, -0.5, 0.5, 1.0)  # m: see _fits_as_well_elsewhere
+    # See _fits_as_well_elsewhere: probes start every ALIAS_SHIFT_STEP m up to the loop search's
+    # half-width (ALIAS_MIN_REACH at least) either way; a pose that lays ALIAS_FIT_SHARE of the
+    # points on lines as well as the closure's is a look-alike.
+    ALIAS_SHIFT_STEP = 0.5
+    ALIAS_MIN_REACH = 1.0
+    ALIAS_FIT_SHARE = 0.9
     ALIAS_ICP_ITERATIONS = 10  # enough to settle from a metre off; 3 % of freiburg-079's time
+    # After a long drift the widened loop search reaches other passes of the same place: its
+    # submap is the old keyframes nearest the newest one, up to a scan's spread beyond the window.
+    WIDE_SUBMAP_MARGIN = 2.0   # m
+    WIDE_SUBMAP_KEYFRAMES = 60
 
     def __init__(self, config=None):
         self.config = config or SlamConfig()
@@ -277,6 +297,7 @@ class Slam:
         self._unmatched = UnmatchedMotion()
         self._pending_closures = []
         self.rejected_loop_closures = 0
+        self._travel_at_last_closure = 0.0
 
     def _new_grid(self, resolution, cell_shift=0.0):
         return LogOddsGrid(resolution, self.config.hit_log_odds, self.config.free_log_odds, cell_shift)
@@ -487,32 +508,52 @@ class Slam:
         if oldest_local <= 0:
             return
         travel = np.array([keyframe.travel for keyframe in self.keyframes[:oldest_local]])
+        path = self.keyframes[newest].travel - travel
+        windows = self._loop_windows(path, self.keyframes[newest].travel)
         poses = self.graph.poses[:oldest_local]
         current = tuple(self.graph.poses[newest])
         gaps = np.hypot(poses[:, 0] - current[0], poses[:, 1] - current[1])
-        eligible = (self.keyframes[newest].travel - travel >= config.loop_min_travel) & \
-            (gaps <= config.loop_search_radius)
+        eligible = (path >= config.loop_min_travel) & \
+            (gaps <= config.loop_search_radius + windows - config.loop_window_xy)
         if not eligible.any():
             return
         self._last_loop_attempt = newest
         candidate = int(np.flatnonzero(eligible)[np.argmin(gaps[eligible])])
-        members = [index for index in range(candidate - config.loop_submap_keyframes,
-                                            candidate + config.loop_submap_keyframes + 1)
-                   if 0 <= index < oldest_local]
+        window = float(windows[candidate])
+        members = self._submap_members(candidate, window, eligible, gaps)
         cloud = self._recent_cloud(newest)
         if len(cloud) < 20:
             return
-        matcher = self._submap_matcher(members, current, cloud)
-        result = matcher.match(cloud, current, config.loop_window_xy, config.loop_window_theta,
-                               min_score=config.loop_min_score)
+        matcher = self._submap_matcher(members, current, cloud, window)
+        result = matcher.match(cloud, current, window, config.loop_window_theta, min_score=config.loop_min_score)
         if result.score < config.loop_min_score:
             return
         pose = matcher.refine(cloud, result.pose).pose
         old = self._nearest_view(members, pose)
         closure = LoopClosure(old, newest, relative(tuple(self.graph.poses[old]), pose), result.score,
                               compose(pose, inverse(current)), current)
-        if self._keyframes_agree(closure):
+        if self._keyframes_agree(closure, window):
             self._consider_loop_closure(closure)
+
+    def _loop_windows(self, path, newest_travel):
+        """The loop search's half-width (m) towards old keyframes `path` m of path back: as far as
+        the map may have drifted since a closure last pinned it, or since that keyframe if nearer."""
+        config = self.config
+        since_closure = newest_travel - self._travel_at_last_closure
+        drift = config.loop_drift * np.minimum(path, since_closure)
+        return np.clip(drift, config.loop_window_xy, config.loop_window_max_xy)
+
+    def _submap_members(self, candidate, window, eligible, gaps):
+        """The old keyframes the loop search matches against: those along the path around the
+        candidate or, when the search has widened, the eligible ones nearest the newest keyframe
+        (`eligible` and `gaps` are per old keyframe)."""
+        config = self.config
+        if window <= config.loop_window_xy:
+            return [index for index in range(candidate - config.loop_submap_keyframes,
+                                             candidate + config.loop_submap_keyframes + 1)
+                    if 0 <= index < len(eligible)]
+        near = np.flatnonzero(eligible & (gaps <= window + self.WIDE_SUBMAP_MARGIN))
+        return sorted(near[np.argsort(gaps[near])[:self.WIDE_SUBMAP_KEYFRAMES]].tolist())
 
     def _nearest_view(self, members, pose):
         """The old keyframe whose view is nearest `pose`'s: close by, and looking the same way
@@ -523,7 +564,7 @@ class Slam:
             self.VIEW_TURN_WEIGHT * np.abs(wrap_angle(poses[:, 2] - pose[2]))
         return members[int(np.argmin(gaps))]
 
-    def _keyframes_agree(self, closure):
+    def _keyframes_agree(self, closure, window=0.0):
         """Whether the two keyframes' scans, aligned from the closure's relative pose, stay within
         loop_check_* of it. On freiburg-101 the old keyframe sat 0.55 m off among its neighbours,
         and a right match made an edge to it wrong by as much. The scans' every hit is aligned, not
@@ -537,28 +578,32 @@ class Slam:
             return False
         pose, hessian = aligned
         return self._within_check(pose, closure.measured) and \
-            not self._fits_as_well_elsewhere(target, newest.points, pose, hessian)
+            not self._fits_as_well_elsewhere(target, newest.points, pose, hessian, window)
 
     def _within_check(self, pose, measured):
         return distance(pose, measured) <= self.config.loop_check_xy and \
             abs(wrap_angle(pose[2] - measured[2])) <= self.config.loop_check_theta
 
-    def _fits_as_well_elsewhere(self, target, points, pose, hessian):
-        """Whether the newest keyframe's points, aligned from up to a metre further either way
-        along the direction the alignment pins least (a corridor's length), lie on the old
-        scan's lines at another pose as well as at `pose`. Along a corridor ICP stops where a
-        few door frames line up: on infinite-corridor (odometry seeds 2-4) it agreed with
-        closures 0.3-0.6 m along the corridor from where the scans fit best, and the graph
-        took them. A closure whose scans fit as well elsewhere cannot say where the robot is."""
+    def _fits_as_well_elsewhere(self, target, points, pose, hessian, window):
+        """Whether the newest keyframe's points, aligned from further either way along the
+        direction the alignment pins least (a corridor's length), lie on the old scan's lines at
+        another pose almost as well as at `pose`; the starts reach as far as the loop search did.
+        Along a corridor ICP stops where a few door frames line up: on infinite-corridor
+        (odometry seeds 2-4) it agreed with closures 0.3-0.6 m along the corridor from where the
+        scans fit best, and the graph took them; a search widened to 5 m found doors 4.7 and 9 m
+        along that fit nearly as well. A closure whose scans fit as well elsewhere cannot say
+        where the robot is."""
         _, directions = np.linalg.eigh(hessian[:2, :2])
         along = directions[:, 0]
         fit = target.points_on_lines(points, pose)
-        for shift in self.ALIAS_SHIFTS:
-            start = (pose[0] + shift * along[0], pose[1] + shift * along[1], pose[2])
-            other = align(target, points, start, self.ALIAS_ICP_ITERATIONS)
-            if other is not None and not self._within_check(other[0], pose) and \
-                    target.points_on_lines(points, other[0]) >= fit:
-                return True
+        steps = int(max(self.ALIAS_MIN_REACH, window) / self.ALIAS_SHIFT_STEP + 1e-9)
+        for shift in self.ALIAS_SHIFT_STEP * np.arange(1, steps + 1):
+            for sign in (-1.0, 1.0):
+                start = (pose[0] + sign * shift * along[0], pose[1] + sign * shift * along[1], pose[2])
+                other = align(target, points, start, self.ALIAS_ICP_ITERATIONS)
+                if other is not None and not self._within_check(other[0], pose) and \
+                        target.points_on_lines(points, other[0]) >= self.ALIAS_FIT_SHARE * fit:
+                    return True
         return False
 
     def _consider_loop_closure(self, closure):
@@ -580,8 +625,10 @@ class Slam:
         if any(each.moves_map(config) for each in accepted):
             self._optimize()
             self._drop_contradicted_closures(accepted)
-        self.loop_closures.extend((each.old, each.newest, each.measured, each.score)
-                                  for each in accepted if each.edge_in(self.graph))
+        kept = [each for each in accepted if each.edge_in(self.graph)]
+        self.loop_closures.extend((each.old, each.newest, each.measured, each.score) for each in kept)
+        if kept:
+            self._travel_at_last_closure = self.keyframes[-1].travel
 
     def _drop_contradicted_closures(self, accepted):
         errors = self.graph.edge_errors()
@@ -609,12 +656,11 @@ class Slam:
             cloud = cloud[np.linspace(0, len(cloud) - 1, limit).astype(int)]
         return cloud
 
-    def _submap_matcher(self, members, current, cloud):
+    def _submap_matcher(self, members, current, cloud, window):
         """A matcher over the old keyframes' points where the cloud can fall in the loop search's
         window, with room for the coarsest maxima's blocks and the field's spread."""
         resolution = self.config.loop_match_resolution
-        low, high = searched_cells(cloud, current, self.config.loop_window_xy, self.config.loop_window_theta,
-                                   resolution)
+        low, high = searched_cells(cloud, current, window, self.config.loop_window_theta, resolution)
         margin = (1 << self.LOOP_LEVELS) + FIELD_RADIUS
         low, high = low - margin, high + margin
         size = high - low + 1
