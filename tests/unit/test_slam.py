@@ -468,15 +468,18 @@ def test_a_loop_closure_is_refused_when_a_look_alike_fits_almost_as_well():
     assert slam._keyframes_agree(right, window=3.5)
 
 
-def test_the_loop_search_widens_with_the_path_since_the_last_closure_up_to_its_max():
+def test_the_loop_search_widens_with_the_path_between_the_keyframes_a_closed_loop_a_shortcut():
     slam = Slam()
     config = slam.config
-    paths = np.array([10.0, 100.0, 1000.0])  # m of path back to three old keyframes
-    assert slam._loop_windows(paths, 1000.0) == pytest.approx(
+    for travel in (0.0, 100.0, 200.0, 300.0, 400.0):  # keyframes 100 m of path apart
+        slam.keyframes.append(Keyframe(travel, None, None, travel))
+        slam._extend_drift_path()
+    assert slam._drift_path == pytest.approx([400.0, 300.0, 200.0, 100.0, 0.0])
+    assert slam._loop_windows(np.array([10.0, 100.0, 1000.0])) == pytest.approx(
         [config.loop_window_xy, config.loop_drift * 100.0, config.loop_window_max_xy])
-    slam._travel_at_last_closure = 950.0  # a loop closed 50 m ago: the map drifted since then only
-    assert slam._loop_windows(paths, 1000.0) == pytest.approx(
-        [config.loop_window_xy, config.loop_drift * 50.0, config.loop_drift * 50.0])
+    slam._shorten_drift_path(LoopClosure(1, 3, (0.0, 0.0, 0.0), 0.9, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)))
+    # Keyframe 3 was found back at keyframe 1, 100 m of path before the newest one.
+    assert slam._drift_path == pytest.approx([200.0, 100.0, 200.0, 100.0, 0.0])
 
 
 def test_a_loop_closure_between_keyframes_that_overlap_too_little_to_judge_is_refused():

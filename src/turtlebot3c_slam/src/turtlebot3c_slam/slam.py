@@ -25,10 +25,10 @@ How it works:
 - *Loop closure*: a new keyframe near an old part of the trajectory (more than
   `loop_min_travel` metres of path ago, within `loop_search_radius`) is matched, with the
   last few keyframes' points, against a submap built from the old keyframes around there,
-  over a wide window (branch and bound keeps that fast). The map drifts while no loop closes:
-  the window, and how far off an old keyframe may be, grow by `loop_drift` per metre of path
-  since the last closure (up to `loop_window_max_xy`), so that a loop a few hundred metres
-  long still closes. The closure's edge joins the newest
+  over a wide window (branch and bound keeps that fast). The map drifts along the path: the
+  window, and how far off an old keyframe may be, grow by `loop_drift` per metre of path
+  between it and the newest one (a closed loop is a shortcut; up to `loop_window_max_xy`),
+  so that a loop a few hundred metres long still closes. The closure's edge joins the newest
   keyframe to the old one nearest: a good match must also put those two where their own
   scans, aligned directly (point-to-line ICP, line_icp), agree within `loop_check_*`, for an
   old keyframe that sits a little wrong among its neighbours would make the edge wrong by as
@@ -109,11 +109,11 @@ class SlamConfig:
         ("loop_search_radius", 3.0),      # m between a new keyframe and an old one to try closing
         ("loop_min_travel", 6.0),         # m of path between them
         ("loop_window_xy", 1.0),          # m, loop-closure search half-width, at least
-        # m per m of path since the last closure (or since the old keyframe, if less): how far
-        # the map may drift while no loop closes. The search widens by as much, up to the max;
-        # aces, fhw and infinite-corridor drifted 3-10 m between closures at 1-3 %.
+        # m per m of path between an old keyframe and the newest, a closed loop counting as a
+        # shortcut: how far the map may have drifted between them. The search widens by as much,
+        # up to the max; aces, fhw, acapulco and infinite-corridor drifted 3-10 m at 1-3 %.
         ("loop_drift", 0.03),
-        ("loop_window_max_xy", 5.0),      # m
+        ("loop_window_max_xy", 10.0),     # m
         ("loop_window_theta", 0.35),      # rad
         # m per cell of the loop search's submap. Its old keyframes sit a few cm off each other
         # after a long loop; at 2.5 cm a right match scored too little (acapulco: no loop closed).
@@ -297,7 +297,8 @@ class Slam:
         self._unmatched = UnmatchedMotion()
         self._pending_closures = []
         self.rejected_loop_closures = 0
-        self._travel_at_last_closure = 0.0
+        # m of path from each keyframe to the newest along which drift builds up: see _drift_paths
+        self._drift_path = np.zeros(0)
 
     def _new_grid(self, resolution, cell_shift=0.0):
         return LogOddsGrid(resolution, self.config.hit_log_odds, self.config.free_log_odds, cell_shift)
@@ -419,6 +420,7 @@ class Slam:
     def _add_keyframe(self, stamp, rays, points):
         index = self.graph.add_node(self.pose)
         self.keyframes.append(Keyframe(stamp, rays, points, self.travel))
+        self._extend_drift_path()
         if index > 0:
             previous = tuple(self.graph.poses[index - 1])
             self.graph.add_edge(index - 1, index, relative(previous, self.pose), self._information(
@@ -509,7 +511,7 @@ class Slam:
             return
         travel = np.array([keyframe.travel for keyframe in self.keyframes[:oldest_local]])
         path = self.keyframes[newest].travel - travel
-        windows = self._loop_windows(path, self.keyframes[newest].travel)
+        windows = self._loop_windows(self._drift_path[:oldest_local])
         poses = self.graph.poses[:oldest_local]
         current = tuple(self.graph.poses[newest])
         gaps = np.hypot(poses[:, 0] - current[0], poses[:, 1] - current[1])
@@ -535,13 +537,26 @@ class Slam:
         if self._keyframes_agree(closure, window):
             self._consider_loop_closure(closure)
 
-    def _loop_windows(self, path, newest_travel):
-        """The loop search's half-width (m) towards old keyframes `path` m of path back: as far as
-        the map may have drifted since a closure last pinned it, or since that keyframe if nearer."""
+    def _loop_windows(self, drift_path):
+        """The loop search's half-width (m) towards old keyframes `drift_path` m of path away: as
+        far as the map may have drifted between them and the newest keyframe."""
         config = self.config
-        since_closure = newest_travel - self._travel_at_last_closure
-        drift = config.loop_drift * np.minimum(path, since_closure)
-        return np.clip(drift, config.loop_window_xy, config.loop_window_max_xy)
+        return np.clip(config.loop_drift * drift_path, config.loop_window_xy, config.loop_window_max_xy)
+
+    def _extend_drift_path(self):
+        """The newest keyframe is the path's end: every keyframe is as much further from it."""
+        step = self.keyframes[-1].travel - self.keyframes[-2].travel if len(self.keyframes) > 1 else 0.0
+        self._drift_path = np.append(self._drift_path + step, 0.0)
+
+    def _shorten_drift_path(self, closure):
+        """A closed loop joins its two keyframes: a keyframe's path to the newest may now run to
+        the closure's old keyframe, across, and on. Only the shortcut through the one closure is
+        taken, not chains of several: the path may come out longer than the shortest, and the
+        search wider than it needs, never narrower. Counted from the last closure alone, the
+        drift missed a map bent 10-20 m elsewhere (infinite-corridor, acapulco)."""
+        travel = np.array([keyframe.travel for keyframe in self.keyframes])
+        across = np.abs(travel - travel[closure.old]) + travel[-1] - travel[closure.newest]
+        self._drift_path = np.minimum(self._drift_path, across)
 
     def _submap_members(self, candidate, window, eligible, gaps):
         """The old keyframes the loop search matches against: those along the path around the
@@ -627,8 +642,8 @@ class Slam:
             self._drop_contradicted_closures(accepted)
         kept = [each for each in accepted if each.edge_in(self.graph)]
         self.loop_closures.extend((each.old, each.newest, each.measured, each.score) for each in kept)
-        if kept:
-            self._travel_at_last_closure = self.keyframes[-1].travel
+        for each in kept:
+            self._shorten_drift_path(each)
 
     def _drop_contradicted_closures(self, accepted):
         errors = self.graph.edge_errors()
