@@ -297,7 +297,7 @@ class Slam:
         self._unmatched = UnmatchedMotion()
         self._pending_closures = []
         self.rejected_loop_closures = 0
-        # m of path from each keyframe to the newest along which drift builds up: see _drift_paths
+        # m of path from each keyframe to the newest along which drift builds up (_extend_drift_path)
         self._drift_path = np.zeros(0)
 
     def _new_grid(self, resolution, cell_shift=0.0):
