@@ -101,7 +101,7 @@ def test_slam_closes_no_loop_to_a_look_alike_stretch_of_a_long_corridor():
     assert len(run.closures) >= 10, "the corridor's other loops still close"
 
 
-def test_slam_closes_the_big_loop_after_a_hundred_metres_of_drift():
+def test_slam_closes_the_big_loop_after_two_hundred_metres_of_path():
     """fhw, severe odometry: back at the start after ~200 m of path the map had drifted 3-10 m
     and 13 degrees, beyond the fixed 1 m loop search; the walls of the whole floor were drawn
     twice (ATE 1.6-2.8 m). The search now widens with the path since the last closure."""
