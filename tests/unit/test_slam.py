@@ -169,14 +169,21 @@ def room_ranges(pose, angles, half_width=2.0):
     return np.minimum(np.abs(to_x), np.abs(to_y))
 
 
-def test_a_scan_that_matches_poorly_never_becomes_a_keyframe_unless_poor_ones_go_on():
-    """Its pose is odometry's guess; drawn into the local map it would mislead the next scans."""
+def slam_tracking_in_a_room():
+    """A SLAM that has tracked three scans 0.3 m apart along a square room's x axis, odometry
+    exact; with the 360-beam geometry and beam angles it took them with."""
     geometry = ScanGeometry(-math.pi, 2 * math.pi / 360, 360, 0.1, 10.0)
     angles = -math.pi + np.arange(360) * 2 * math.pi / 360
     slam = Slam()
     for step in range(3):
         pose = (0.3 * step - 0.6, 0.0, 0.0)
         slam.add_scan(float(step), room_ranges(pose, angles), geometry, pose)
+    return slam, geometry, angles
+
+
+def test_a_scan_that_matches_poorly_never_becomes_a_keyframe_unless_poor_ones_go_on():
+    """Its pose is odometry's guess; drawn into the local map it would mislead the next scans."""
+    slam, geometry, angles = slam_tracking_in_a_room()
     keyframes = len(slam.keyframes)
     garbage = np.random.RandomState(2).uniform(0.3, 6.0, 360)  # what a dirty or blinded LIDAR gives
     slam.add_scan(3.0, garbage, geometry, (0.3, 0.0, 0.0))
@@ -189,12 +196,7 @@ def test_a_slip_further_than_the_tracking_window_is_found_by_a_second_wider_sear
     """A wheel slip can throw the robot further than 3 sigma of odometry's error: the match
     around the prediction is poor, and the scan is searched again over the widest window rather
     than left at odometry's guess."""
-    geometry = ScanGeometry(-math.pi, 2 * math.pi / 360, 360, 0.1, 10.0)
-    angles = -math.pi + np.arange(360) * 2 * math.pi / 360
-    slam = Slam()
-    for step in range(3):
-        pose = (0.3 * step - 0.6, 0.0, 0.0)
-        slam.add_scan(float(step), room_ranges(pose, angles), geometry, pose)
+    slam, geometry, angles = slam_tracking_in_a_room()
     slipped = (0.7, 0.4, 0.0)  # odometry says (0.3, 0, 0): 0.57 m off, the window is 0.2 m
     tracked = slam.add_scan(3.0, room_ranges(slipped, angles), geometry, (0.3, 0.0, 0.0))
     assert slam.poor_matches == 0
@@ -381,10 +383,21 @@ def room_corner_points(pose):
     return transform_points(inverse(pose), walls)
 
 
+def keyframe_of_hits(hits, travel, geometry):
+    """A keyframe whose scan hit `hits` (robot frame), matching one point in four."""
+    return Keyframe(travel, ScanRays(geometry, hits, np.zeros((0, 2))), hits[::4], travel)
+
+
 def keyframe_seeing_room_corner(pose, travel):
-    hits = room_corner_points(pose)
-    rays = ScanRays(ScanGeometry(-math.pi / 2, 0.01, 315, 0.0, math.inf), hits, np.zeros((0, 2)))
-    return Keyframe(travel, rays, hits[::4], travel)
+    return keyframe_of_hits(room_corner_points(pose), travel, ScanGeometry(-math.pi / 2, 0.01, 315, 0.0, math.inf))
+
+
+def slam_with_keyframes_seeing(old_hits, new_hits):
+    """A SLAM holding two keyframes, 50 m of path apart, whose full-circle scans hit these."""
+    geometry = ScanGeometry(-math.pi, 0.01, 628, 0.0, math.inf)
+    slam = Slam()
+    slam.keyframes = [keyframe_of_hits(old_hits, 0.0, geometry), keyframe_of_hits(new_hits, 50.0, geometry)]
+    return slam
 
 
 def test_a_loop_closure_the_two_keyframes_own_scans_contradict_is_refused():
@@ -416,13 +429,10 @@ def corridor_with_doors_points(x_from, x_to, pose, period=1.0, door=0.4):
 def test_a_loop_closure_in_a_corridor_whose_doors_repeat_is_refused():
     """In a corridor whose doors repeat, two keyframes' scans fit as well one door apart: ICP
     from a closure's pose agrees with it, and only a start further along shows the other fit."""
-    slam = Slam()
     old_pose, new_pose = (0.0, 0.0, 0.0), (1.0, 0.0, 0.0)
-    geometry = ScanGeometry(-math.pi, 0.01, 628, 0.0, math.inf)
     old_hits = corridor_with_doors_points(-8.0, 8.0, old_pose)
     new_hits = corridor_with_doors_points(-5.0, 7.0, new_pose)
-    slam.keyframes = [Keyframe(0.0, ScanRays(geometry, old_hits, np.zeros((0, 2))), old_hits[::4], 0.0),
-                      Keyframe(10.0, ScanRays(geometry, new_hits, np.zeros((0, 2))), new_hits[::4], 50.0)]
+    slam = slam_with_keyframes_seeing(old_hits, new_hits)
     one_door_short = (0.0, 0.0, 0.0)
     closure = LoopClosure(0, 1, one_door_short, 0.9, (0.0, 0.0, 0.0), new_pose)
     aligned, _ = align(LineCloud(old_hits), new_hits, one_door_short)
@@ -433,13 +443,10 @@ def test_a_loop_closure_in_a_corridor_whose_doors_repeat_is_refused():
 def test_a_loop_closure_probes_for_look_alikes_as_far_as_its_search_reached():
     """After a long drift the loop search reaches metres along a corridor, and so may a
     look-alike: a corridor whose wide doors repeat every 3 m fits as well one door further on."""
-    slam = Slam()
     old_pose, new_pose = (0.0, 0.0, 0.0), (3.0, 0.0, 0.0)
-    geometry = ScanGeometry(-math.pi, 0.01, 628, 0.0, math.inf)
     old_hits = corridor_with_doors_points(-12.0, 12.0, old_pose, period=3.0, door=0.8)
     new_hits = corridor_with_doors_points(-6.0, 9.0, new_pose, period=3.0, door=0.8)
-    slam.keyframes = [Keyframe(0.0, ScanRays(geometry, old_hits, np.zeros((0, 2))), old_hits[::4], 0.0),
-                      Keyframe(10.0, ScanRays(geometry, new_hits, np.zeros((0, 2))), new_hits[::4], 50.0)]
+    slam = slam_with_keyframes_seeing(old_hits, new_hits)
     one_door_short = LoopClosure(0, 1, (0.0, 0.0, 0.0), 0.9, (0.0, 0.0, 0.0), new_pose)
     assert slam._keyframes_agree(one_door_short, window=1.0)  # a metre's probes cannot tell
     assert not slam._keyframes_agree(one_door_short, window=3.5)
@@ -453,15 +460,12 @@ def test_a_loop_closure_is_refused_when_a_look_alike_fits_almost_as_well():
         along = np.arange(0.1, 1.0, 0.025)
         return transform_points(inverse(pose), np.column_stack((np.full_like(along, 1.5), along)))
 
-    slam = Slam()
     old_pose, new_pose = (0.0, 0.0, 0.0), (3.0, 0.0, 0.0)
-    geometry = ScanGeometry(-math.pi, 0.01, 628, 0.0, math.inf)
     old_hits = np.concatenate((corridor_with_doors_points(-12.0, 12.0, old_pose, period=3.0, door=0.8),
                                stub(old_pose)))
     new_hits = np.concatenate((corridor_with_doors_points(-6.0, 9.0, new_pose, period=3.0, door=0.8),
                                stub(new_pose)))
-    slam.keyframes = [Keyframe(0.0, ScanRays(geometry, old_hits, np.zeros((0, 2))), old_hits[::4], 0.0),
-                      Keyframe(10.0, ScanRays(geometry, new_hits, np.zeros((0, 2))), new_hits[::4], 50.0)]
+    slam = slam_with_keyframes_seeing(old_hits, new_hits)
     right = LoopClosure(0, 1, relative(old_pose, new_pose), 0.9, (0.0, 0.0, 0.0), new_pose)
     assert not slam._keyframes_agree(right, window=3.5)
     slam.ALIAS_FIT_SHARE = 1.0  # only a look-alike that fits at least as well
