@@ -21,18 +21,12 @@ import math
 
 import numpy as np
 
-from turtlebot3c_common.se2 import relative, transform_points, wrap_angle
+from turtlebot3c_common.se2 import relative, transform_points
 from turtlebot3c_sim.evaluation import contradicts, relative_pose_errors
-from turtlebot3c_slam.line_icp import LineCloud, align
-from turtlebot3c_slam.pose_graph import PoseGraph
+from turtlebot3c_slam import scan_refinement
 
-MAX_RANGE = 20.0        # m: farther echoes are too coarse in angle to fit lines to
 NEIGHBOUR_SCANS = 3     # consistency: each scan against the next three
-FLOOR_RADIUS = 3.0      # m: scans this close are matched for the floor...
-FLOOR_TURN = 1.0        # rad: ...unless they look in directions this different (little overlap)
 FLOOR_SPACING = 0.5     # m: a dense log is thinned to scans this far apart for the floor (cost)
-ICP_SIGMA = 0.01        # m, a SICK's range noise: scales each match's information
-REFERENCE_INFORMATION = np.diag([1.0, 1.0, 100.0])  # 1 m, 0.1 rad: weak next to any ICP match
 
 
 class ScanSet:
@@ -43,8 +37,8 @@ class ScanSet:
         directions = np.column_stack((np.cos(angles), np.sin(angles)))
         self.clouds = []
         for ranges in log.ranges:
-            usable = np.isfinite(ranges) & (ranges > 0.05) & (ranges < MAX_RANGE)
-            self.clouds.append(LineCloud(directions[usable] * ranges[usable, None]))
+            usable = np.isfinite(ranges) & (ranges > 0.05)
+            self.clouds.append(scan_refinement.scan_cloud(directions[usable] * ranges[usable, None]))
 
     def __len__(self):
         return len(self.clouds)
@@ -66,36 +60,9 @@ def consistency(scans, trajectory):
     return float(np.mean(medians)) if medians else math.nan
 
 
-def match(scans, i, j, start):
-    """Point-to-line ICP of scan j against scan i from `start`: (pose of j seen from i, 3x3
-    information in the pose's frame), or None when they do not overlap enough."""
-    aligned = align(scans.clouds[i], scans.clouds[j].points, start)
-    if aligned is None:
-        return None
-    pose, hessian = aligned
-    cos, sin = math.cos(pose[2]), math.sin(pose[2])
-    to_pose_frame = np.array([[cos, -sin, 0.0], [sin, cos, 0.0], [0.0, 0.0, 1.0]])
-    return pose, to_pose_frame.T @ hessian @ to_pose_frame / ICP_SIGMA ** 2
-
-
 def most_consistent_trajectory(scans, reference):
     """The trajectory that agrees best with the scans, found from the reference (see the module's doc)."""
-    graph = PoseGraph(huber_delta=3.0)
-    for pose in reference:
-        graph.add_node(pose)
-    for i in range(1, len(reference)):  # holds together stretches the scans leave unmatched
-        graph.add_edge(i - 1, i, relative(tuple(reference[i - 1]), tuple(reference[i])), REFERENCE_INFORMATION)
-    for i in range(len(reference)):
-        gaps = np.hypot(reference[:, 0] - reference[i, 0], reference[:, 1] - reference[i, 1])
-        for j in np.flatnonzero(gaps < FLOOR_RADIUS):
-            turn = abs(wrap_angle(reference[j, 2] - reference[i, 2]))
-            if j <= i or (j - i > NEIGHBOUR_SCANS and turn > FLOOR_TURN):
-                continue
-            matched = match(scans, i, j, relative(tuple(reference[i]), tuple(reference[j])))
-            if matched is not None:
-                graph.add_edge(i, j, matched[0], matched[1], robust=True)
-    graph.optimize(iterations=20)
-    return graph.poses.copy()
+    return scan_refinement.refine(scan_refinement.chain(reference), scans.clouds)
 
 
 def floor(log):
@@ -133,7 +100,7 @@ def best_alignment(scans, i, j, starts):
     11 degrees that the scans do not, it stops in a minimum that fits half as well."""
     best, best_fit = None, -1
     for start in starts:
-        matched = match(scans, i, j, start)
+        matched = scan_refinement.match(scans.clouds[i], scans.clouds[j].points, start)
         if matched is None:
             continue
         fit = scans.clouds[i].points_on_lines(scans.clouds[j].points, matched[0])

@@ -96,7 +96,7 @@ class ReplayResult:
 
 def replay(inputs, config, base_frame="base_footprint", odometry_source="auto", scan_mount=None,
            odom_topic="/odom"):
-    """Run the bag's scans through a new Slam; returns a ReplayResult."""
+    """Run the bag's scans through a new Slam, refined at the end (Slam.refine); returns a ReplayResult."""
     series, source = odometry_series(inputs, odometry_source, base_frame, odom_topic)
     slam, geometries, mounts = Slam(config), ScanGeometries(), {}
     processed = skipped = 0
@@ -120,6 +120,7 @@ def replay(inputs, config, base_frame="base_footprint", odometry_source="auto", 
         slam.add_scan(reference, np.asarray(scan.ranges, dtype=np.float64), geometries.get(scan, mounts[frame]),
                       odometry, motion)
         processed += 1
+    slam.refine()
     return ReplayResult(slam, processed, skipped, time.process_time() - started, inputs.duration, source)
 
 

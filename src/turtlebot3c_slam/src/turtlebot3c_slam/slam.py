@@ -7,6 +7,7 @@ Use::
     slam.map_to_odom                               # (x, y, yaw) for the map -> odom transform
     slam.occupancy_map()                           # map_files.OccupancyMap (100 / 0 / -1)
     slam.trajectory()                              # [(stamp, x, y, yaw)] per scan, after loop closures
+    slam.refine()                                  # at the end of a session (scan_refinement)
 
 How it works:
 - *Tracking*: odometry since the last scan predicts the pose; the scan is matched against a
@@ -49,6 +50,7 @@ import numpy as np
 
 from turtlebot3c_common.se2 import compose, distance, inverse, relative, transform_points, wrap_angle
 
+from . import scan_refinement
 from .line_icp import LineCloud, align
 from .occupancy_grid import LogOddsGrid, hit_cells
 from .pose_graph import PoseGraph
@@ -692,7 +694,22 @@ class Slam:
         newest = len(self.keyframes) - 1
         before = tuple(self.graph.poses[newest])
         self.graph.optimize()
-        self.pose = compose(tuple(self.graph.poses[newest]), relative(before, self.pose))
+        self._keyframes_moved(before)
+
+    def refine(self):
+        """At the end of a session: every keyframe where its scan agrees best with those of the
+        keyframes near it (scan_refinement), on top of the graph's own edges; the maps follow."""
+        if len(self.keyframes) < 2:
+            return
+        before = tuple(self.graph.poses[-1])
+        clouds = [scan_refinement.scan_cloud(keyframe.rays.hits) for keyframe in self.keyframes]
+        self.graph.poses = scan_refinement.refine(self.graph, clouds)
+        self._keyframes_moved(before)
+
+    def _keyframes_moved(self, newest_before):
+        """After the graph moved its keyframes: the pose follows the newest, the maps are redrawn."""
+        newest = len(self.keyframes) - 1
+        self.pose = compose(tuple(self.graph.poses[newest]), relative(newest_before, self.pose))
         self._rebuild_local_map()
         self._global_dirty = True
         self._optimizations += 1
