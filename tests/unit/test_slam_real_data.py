@@ -78,11 +78,13 @@ def test_slam_tracks_sparse_real_scans_that_each_see_much_new_ground():
 
 def test_slam_tracks_an_open_hall_by_walls_beyond_8_m():
     """edmonton, a convention centre: 44 % of the hits lie beyond 8 m. Cut at 8 m, the scans
-    held little to track (0.12 m / 0.94 degrees, severe odometry)."""
+    held little to track (0.12 m / 0.94 degrees, severe odometry). Without the refinement at
+    the end (Slam.refine), tracking and loop closures left 0.080 m / 0.48 degrees; with it,
+    0.065 / 0.42."""
     log = load_log("edmonton")
     run = run_slam(log, "severe", seed=1)
     ours = score(log, run.trajectory, run.closures)
-    assert ours.translation < 0.1 and ours.rotation < 0.75, ours
+    assert ours.translation < 0.072 and ours.rotation < 0.46, ours
     assert ours.false_closures == 0, run.closures
 
 
