@@ -13,7 +13,8 @@ the reference:
   ICP, the reference decides).
 - floor(): the trajectory that agrees best with the scans (point-to-line ICP between every pair
   of scans near each other, each match weighted by how well it pins the pose -- a corridor
-  leaves the along-corridor direction loose --, optimised as a pose graph from the reference)
+  leaves the along-corridor direction loose --, optimised as a pose graph from the reference:
+  turtlebot3c_slam.scan_refinement, the SLAM's own refinement at the end)
   scored against the reference with the relations metric. No mapper that follows the scans can
   be expected to score much below it.
 """

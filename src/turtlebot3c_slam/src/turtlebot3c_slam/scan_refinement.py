@@ -35,7 +35,7 @@ FIRST_ESTIMATE_INFORMATION = np.diag([1.0, 1.0, 100.0])
 # may slide to a look-alike.
 MAX_SHIFT = 0.3         # m
 MAX_TURN = 0.1          # rad
-ICP_ITERATIONS = 10     # each pair starts within MAX_SHIFT: ICP settles in a few
+ICP_ITERATIONS = 10     # from an estimate this close ICP settles in a few
 HUBER_DELTA = 3.0
 ITERATIONS = 20
 
