@@ -16,12 +16,9 @@ def log():
     return load_log("freiburg-101", 60)
 
 
-def clouds_of(log):
-    angles = log.angle_min + np.arange(log.beams) * log.angle_increment
-    directions = np.column_stack((np.cos(angles), np.sin(angles)))
-    usable = np.isfinite(log.ranges) & (log.ranges > 0.05)
-    return [scan_refinement.scan_cloud(directions[each] * ranges[each, None])
-            for ranges, each in zip(log.ranges, usable)]
+@pytest.fixture(scope="module")
+def scans(log):
+    return scan_consistency.ScanSet(log)
 
 
 def relations_error(log, poses):
@@ -29,22 +26,22 @@ def relations_error(log, poses):
 
 
 def test_icp_finds_a_scan_laid_over_itself_from_a_start_that_is_off(log):
-    cloud = clouds_of(log.head(1))[0]
+    cloud = scan_consistency.ScanSet(log.head(1)).clouds[0]
     pose, information = scan_refinement.match(cloud, cloud.points, (0.06, -0.04, 0.03))
     assert pose == pytest.approx((0.0, 0.0, 0.0), abs=2e-3)
     assert np.all(np.linalg.eigvalsh(information) > 0)
 
 
-def test_poses_shaken_by_centimetres_are_brought_back_to_where_the_scans_agree(log):
+def test_poses_shaken_by_centimetres_are_brought_back_to_where_the_scans_agree(log, scans):
     shaken = log.reference + np.random.RandomState(1).normal(0.0, 1.0, log.reference.shape) * (0.05, 0.05, 0.01)
     shaken[0] = log.reference[0]  # the first pose stays where it is: the frames coincide
-    refined = scan_refinement.refine(scan_refinement.chain(shaken), clouds_of(log))
+    refined = scan_refinement.refine(scan_refinement.chain(shaken), scans.clouds)
     assert relations_error(log, shaken) > 0.06
     assert relations_error(log, refined) < 0.5 * relations_error(log, shaken)
 
 
 def test_a_match_further_from_the_first_estimate_than_a_refinement_mends_is_left_out(log):
-    clouds = clouds_of(log.head(2))
+    clouds = scan_consistency.ScanSet(log.head(2)).clouds
     agreed, _ = scan_refinement.match(clouds[0], clouds[1].points, relative(*map(tuple, log.reference[:2])))
     turned = log.reference[:2] + ((0.0, 0.0, 0.0), (0.0, 0.0, 0.3))   # the second scan 0.3 rad off: left as it is
     assert scan_refinement.refine(scan_refinement.chain(turned), clouds) == pytest.approx(turned)
@@ -53,7 +50,7 @@ def test_a_match_further_from_the_first_estimate_than_a_refinement_mends_is_left
     assert relative(*map(tuple, refined)) == pytest.approx(agreed, abs=2e-3)
 
 
-def test_slam_refined_at_the_end_follows_the_scans_better_and_redraws_its_map(log):
+def test_slam_refined_at_the_end_follows_the_scans_better_and_redraws_its_map(log, scans):
     # Over 60 scans the gain is small next to the reference's own error (0.045 -> 0.038 m); over
     # whole logs it is the accumulated error that goes (docs/benchmarks.md).
     slam = Slam(shipped_slam_config())
@@ -64,7 +61,6 @@ def test_slam_refined_at_the_end_follows_the_scans_better_and_redraws_its_map(lo
     slam.refine()
     assert slam.map_outdated
     after = np.array([pose[1:] for pose in slam.trajectory()])
-    scans = scan_consistency.ScanSet(log)
     assert scan_consistency.consistency(scans, after) < scan_consistency.consistency(scans, before)
     assert relations_error(log, after) < relations_error(log, before)
     slam.occupancy_map()
