@@ -4,7 +4,7 @@ parameters are the benchmark's one set for every log (testkit.real_data.AMCL_PAR
 import numpy as np
 import pytest
 
-from testkit.real_data import AMCL_BOUND, converged_scan, load_log, reference_map, run_amcl
+from testkit.real_data import AMCL_BOUND, amcl_figures, converged_scan, load_log, reference_map, run_amcl
 
 
 @pytest.fixture(scope="module")
@@ -73,3 +73,12 @@ def test_staying_is_judged_over_metres_of_travel_not_over_scans():
     assert converged_scan(*np.array(errors).T, travel) == 185
     # Without hold metres of travel after it, no scan counts.
     assert converged_scan(*np.array([good] * 50).T, 0.1 * np.arange(50)) is None
+
+
+def test_on_a_map_without_the_scans_it_is_judged_on_amcl_still_meets_the_issue_targets():
+    # A robot localises on a map made earlier, from other scans: here the map is drawn from the
+    # even scans alone and the figures count the odd ones.
+    figures = amcl_figures("seattle", "severe", seed=1, scans=150, held_out=True)
+    assert figures.converged and figures.converged_at <= 10
+    assert figures.translation <= 0.05 and figures.rotation <= 1.5
+    assert figures.held >= 0.9
