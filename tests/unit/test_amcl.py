@@ -10,7 +10,7 @@ from turtlebot3c_navigation.grid_info import GridInfo
 from turtlebot3c_navigation.navigation_stack import Localizer, make_filter, make_navigator, pose_error, scan_offset
 from turtlebot3c_sim.navigation_loop import ClosedLoop, world_layers
 from turtlebot3c_sim.simulation import Simulation
-from turtlebot3c_sim.world import load_world, world_from_description
+from turtlebot3c_sim.world import load_world
 
 
 def open_grid():
@@ -178,35 +178,3 @@ def test_a_confidently_wrong_pose_is_noticed_and_relocalised_without_being_asked
     assert filters[0].relocalizations + filters[0].local_respreads >= 1
     position_error, heading_error = errors[-1]
     assert position_error < 0.1 and heading_error < math.radians(3)
-
-
-def corridor(length):
-    """A corridor 2 m wide along x from 0 to `length`, closed at both ends."""
-    return world_from_description({"name": "corridor", "bounds": [-1.0, -2.0, length + 1.0, 2.0], "obstacles": [
-        {"type": "box", "center": [length / 2.0, 1.0], "size": [length, 0.1]},
-        {"type": "box", "center": [length / 2.0, -1.0], "size": [length, 0.1]},
-        {"type": "box", "center": [0.0, 0.0], "size": [0.1, 2.0]},
-        {"type": "box", "center": [length, 0.0], "size": [0.1, 2.0]}]})
-
-
-@pytest.mark.parametrize("seed", [1, 2])
-def test_a_cloud_left_behind_along_a_corridor_is_found_again_along_the_path_driven(seed):
-    # The odometry reads 15 % short down a corridor whose walls fit from anywhere along it (the
-    # scanner reaches 4 m): the cloud follows the odometry and is metres behind when the scans
-    # stop fitting for lost_updates updates (people around the robot), just before the far
-    # end. The scans pinned the position last at the start; retraced with distance scales of
-    # their own, the path from there reaches the robot. A cloud around the last estimate
-    # that fitted (in the corridor, metres behind) does not.
-    world = corridor(32.0)
-    params = AmclParams(laser_max_range=4.0, recovery_alpha_slow=0.0, recovery_alpha_fast=0.0,
-                        odom_alpha1=0.2, odom_alpha2=0.005, odom_alpha3=0.02, odom_alpha4=0.01)
-    particle_filter = make_filter(world_layers(world), params, seed=seed)
-    angles = np.linspace(-math.pi, math.pi, 180, endpoint=False)
-    particle_filter.set_pose((1.5, 0.0, 0.0), np.diag([1e-4, 1e-4, 1e-4]))
-    crowded = 24.0 + 0.5 * np.arange(params.lost_updates)
-    for x in np.arange(1.5, 31.1, 0.5):
-        ranges = np.full(180, 3.9) if np.isclose(crowded, x).any() else world.raycast(x, 0.0, angles, 4.0)
-        particle_filter.update(((x - 1.5) * 0.85, 0.0, 0.0), ranges, angles)
-    assert (particle_filter.local_respreads, particle_filter.relocalizations) == (1, 0)
-    x, y, _ = particle_filter.estimate.pose
-    assert math.hypot(x - 31.0, y) < 0.2
