@@ -182,9 +182,9 @@ class AmclRun(NamedTuple):
     translation_errors: np.ndarray  # (N,) m against the reference
     rotation_errors: np.ndarray     # (N,) deg
     converged_at: Optional[int]     # scan from which it is within AMCL_BOUND and stays (None: never)
-    translation: float              # m, mean error from converged_at on (nan if it never converged)
+    translation: float              # m, mean error from converged_at on, judged scans (nan if it never converged)
     rotation: float                 # deg
-    held: float                     # share of the scans from converged_at on within AMCL_BOUND
+    held: float                     # share of the judged scans from converged_at on within AMCL_BOUND
     scans_per_second: float         # on one core (CPU time of the filter alone)
     updates: int                    # filter updates (each scan that moved update_min_d / update_min_a)
     relocalizations: int            # global relocalisations the filter started by itself
@@ -200,10 +200,11 @@ def amcl_params(**overrides):
     return AmclParams()._replace(**dict(AMCL_PARAMS, **overrides))
 
 
-def run_amcl(log, severity, seed=1, params=None, occupancy_map=None, offset=AMCL_START_OFFSET):
+def run_amcl(log, severity, seed=1, params=None, occupancy_map=None, offset=AMCL_START_OFFSET, judged=None):
     """AMCL over every scan of `log` with odometry of `severity` (a name in SEVERITIES), started
     offset[0] m (diagonally) and offset[1] rad off the first reference pose; the map is the log's
-    reference_map unless given. The filter's seed is `seed` too."""
+    reference_map unless given. The filter's seed is `seed` too. Convergence is judged on every
+    scan; the figures after it count the scans `judged` marks (None: all)."""
     from turtlebot3c_common.se2 import wrap_angle
     from turtlebot3c_navigation.navigation_stack import Localizer, make_filter, map_layers
 
@@ -226,14 +227,22 @@ def run_amcl(log, severity, seed=1, params=None, occupancy_map=None, offset=AMCL
     translation_errors = np.hypot(*(poses[:, :2] - log.reference[:, :2]).T)
     rotation_errors = np.degrees(np.abs(wrap_angle(poses[:, 2] - log.reference[:, 2])))
     start = converged_scan(translation_errors, rotation_errors, log.travel())
-    if start is None:
-        translation = rotation = held = math.nan
-    else:
-        translation = float(translation_errors[start:].mean())
-        rotation = float(rotation_errors[start:].mean())
-        held = float(np.mean((translation_errors[start:] < AMCL_BOUND[0]) & (rotation_errors[start:] < AMCL_BOUND[1])))
+    translation, rotation, held = after_convergence(translation_errors, rotation_errors, start, judged)
     return AmclRun(poses, odometry, translation_errors, rotation_errors, start, translation, rotation, held,
                    len(poses) / seconds if seconds > 0 else math.inf, updates, localizer.filter.relocalizations)
+
+
+def after_convergence(translation_errors, rotation_errors, start, judged=None):
+    """Mean errors (m, deg) and the share within AMCL_BOUND over the scans from `start` on that
+    `judged` (a mask; None: all) counts; nan when the filter never converged (start None)."""
+    if start is None:
+        return math.nan, math.nan, math.nan
+    counted = np.arange(len(translation_errors)) >= start
+    if judged is not None:
+        counted &= judged
+    within = (translation_errors < AMCL_BOUND[0]) & (rotation_errors < AMCL_BOUND[1])
+    return (float(translation_errors[counted].mean()), float(rotation_errors[counted].mean()),
+            float(within[counted].mean()))
 
 
 def converged_scan(translation_errors, rotation_errors, travel=None, bound=AMCL_BOUND, hold=AMCL_HOLD_METRES):
@@ -290,15 +299,10 @@ def amcl_figures(name, severity, seed=1, scans=None, held_out=False):
     key = (name, len(log.stamps), held_out)
     if key not in _REFERENCE_MAPS:
         _REFERENCE_MAPS[key] = reference_map(even_scans(log) if held_out else log)
-    run = run_amcl(log, severity, seed, occupancy_map=_REFERENCE_MAPS[key])
-    if not held_out or not run.converged:
-        return AmclFigures(run.translation, run.rotation, run.converged_at, run.scans_per_second, run.converged,
-                           run.held)
-    odd = np.arange(len(log.stamps)) % 2 == 1
-    counted = odd & (np.arange(len(log.stamps)) >= run.converged_at)
-    held = (run.translation_errors < AMCL_BOUND[0]) & (run.rotation_errors < AMCL_BOUND[1])
-    return AmclFigures(float(run.translation_errors[counted].mean()), float(run.rotation_errors[counted].mean()),
-                       run.converged_at, run.scans_per_second, True, float(held[counted].mean()))
+    odd_scans = np.arange(len(log.stamps)) % 2 == 1
+    run = run_amcl(log, severity, seed, occupancy_map=_REFERENCE_MAPS[key], judged=odd_scans if held_out else None)
+    return AmclFigures(run.translation, run.rotation, run.converged_at, run.scans_per_second, run.converged,
+                       run.held)
 
 
 def even_scans(log):
