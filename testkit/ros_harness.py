@@ -380,10 +380,13 @@ SINGLE_CORE_REPRODUCIBLE = {
 
 def run_in_install_space(script, **extra_env):
     """For the benchmarks in benchmarks/: unless it already runs there, run `script` again, with the same
-    arguments, in the install spaces' environment (rospy, our packages) plus `extra_env`."""
+    arguments, in the install spaces' environment (rospy, our packages) plus `extra_env`, on
+    $TURTLEBOT3C_VENV's Python (.venv's unless set: .venv-core20 runs it on the snap's runtime)."""
     if os.environ.get(BENCH_INSIDE) == "1":
         return
     env = install_space_environment()
     env.update(extra_env)
+    # testkit itself: .venv has it installed (editable), another virtualenv may not.
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, (str(REPO), env.get("PYTHONPATH"))))
     env[BENCH_INSIDE] = "1"
     os.execve(python(), [python(), str(script)] + sys.argv[1:], env)
