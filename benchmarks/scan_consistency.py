@@ -95,16 +95,19 @@ def false_by_scans(scans, closures, reference):
 
 
 def best_alignment(scans, i, j, starts):
-    """Where the scans put j seen from i: ICP from each start, and of the poses it reaches the one
-    that lays the most points of j on i's lines (None when they overlap too little). ICP from the
-    reference's pose alone would judge by the reference: at csail's end, where the reference turns
-    11 degrees that the scans do not, it stops in a minimum that fits half as well."""
+    """Where the scans put j seen from i: of the starts and the poses ICP reaches from them, the one
+    that lays the most points of j on i's lines (None when they overlap too little for ICP). ICP
+    from the reference's pose alone would judge by the reference: at csail's end, where the
+    reference turns 11 degrees that the scans do not, it stops in a minimum that fits half as well.
+    And ICP can slide along a corridor to a pose that fits worse than where it started (ICP's own
+    cost is not this count): the starts themselves are candidates."""
     best, best_fit = None, -1
     for start in starts:
         matched = scan_refinement.match(scans.clouds[i], scans.clouds[j].points, start)
         if matched is None:
             continue
-        fit = scans.clouds[i].points_on_lines(scans.clouds[j].points, matched[0])
-        if fit > best_fit:
-            best, best_fit = matched[0], fit
+        for pose in (matched[0], tuple(start)):
+            fit = scans.clouds[i].points_on_lines(scans.clouds[j].points, pose)
+            if fit > best_fit:
+                best, best_fit = pose, fit
     return best
