@@ -294,11 +294,8 @@ def amcl_figures(name, severity, seed=1, scans=None, held_out=False):
     localises on a map made earlier, from other scans (edmonton, severe: 0.040 m on the scans in
     the map, 0.055 on the others)."""
     log = load_log(name, scans)
-    key = (name, len(log.stamps), held_out)
-    if key not in _REFERENCE_MAPS:
-        _REFERENCE_MAPS[key] = reference_map(even_scans(log) if held_out else log)
-    odd_scans = np.arange(len(log.stamps)) % 2 == 1
-    run = run_amcl(log, severity, seed, occupancy_map=_REFERENCE_MAPS[key], judged=odd_scans if held_out else None)
+    run = run_amcl(log, severity, seed, occupancy_map=_kept_reference_map(name, log, held_out),
+                   judged=odd_scans(log) if held_out else None)
     return AmclFigures(run.translation, run.rotation, run.converged_at, run.scans_per_second, run.converged,
                        run.held)
 
@@ -350,8 +347,22 @@ def amcl_floor_held_out(name, scans=None):
     """amcl_floor of the odd scans of the Radish log `name` on the map of its even scans: the floor
     of amcl_figures(..., held_out=True). It does not depend on the odometry."""
     log = load_log(name, scans)
-    return amcl_floor(log, reference_map(even_scans(log)), np.arange(len(log.stamps)) % 2 == 1)
+    return amcl_floor(log, _kept_reference_map(name, log, held_out=True), odd_scans(log))
+
+
+def _kept_reference_map(name, log, held_out):
+    """reference_map of `log` (of its even scans when held out), built once per process."""
+    key = (name, len(log.stamps), held_out)
+    if key not in _REFERENCE_MAPS:
+        _REFERENCE_MAPS[key] = reference_map(even_scans(log) if held_out else log)
+    return _REFERENCE_MAPS[key]
 
 
 def even_scans(log):
+    """The scans a held-out map is drawn from."""
     return log._replace(stamps=log.stamps[::2], ranges=log.ranges[::2], reference=log.reference[::2])
+
+
+def odd_scans(log):
+    """Mask of the scans held-out figures count: those even_scans leaves out."""
+    return np.arange(len(log.stamps)) % 2 == 1

@@ -13,6 +13,7 @@ from testkit.real_data import (
     converged_scan,
     even_scans,
     load_log,
+    odd_scans,
     reference_map,
     run_amcl,
 )
@@ -112,7 +113,7 @@ def test_on_a_map_without_the_scans_it_is_judged_on_amcl_still_meets_the_issue_t
 
 def test_the_amcl_floor_is_how_far_the_reference_is_from_where_the_scans_fit_the_map(seattle):
     log, _ = seattle
-    odd = np.arange(len(log.stamps)) % 2 == 1
+    odd = odd_scans(log)
     occupancy_map = reference_map(even_scans(log))
     assert amcl_floor(log, occupancy_map, odd).translation < 0.04
     # The odd scans' reference poses 0.15 m off to the side, a degree turned: the scans still
