@@ -37,8 +37,8 @@ def transform_points(pose, points):
     """Points (N, 2) given in the frame at `pose`, expressed in that pose's parent frame."""
     x, y, yaw = pose
     c, s = math.cos(yaw), math.sin(yaw)
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    return np.column_stack((x + c * points[:, 0] - s * points[:, 1], y + s * points[:, 0] + c * points[:, 1]))
+    rotation_transposed = np.array([[c, s], [-s, c]])
+    return np.asarray(points, dtype=np.float64).reshape(-1, 2) @ rotation_transposed + (x, y)
 
 
 def distance(a, b):

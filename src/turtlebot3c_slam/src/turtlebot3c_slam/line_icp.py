@@ -19,6 +19,8 @@ HUBER = 0.03            # m
 MIN_PAIRS = 50
 ITERATIONS = 30
 ON_LINE = 0.05          # m: a point this close to its partner's line lies on it
+SETTLED = 1e-6          # m and rad: a smaller step ends the iterations
+DAMPING = 1e-6 * np.eye(3)  # keeps a corridor's loose direction solvable
 
 
 class LineCloud:
@@ -36,10 +38,11 @@ class LineCloud:
             return None
         distance, partner = self.tree.query(laid)
         near = distance < PAIR_DISTANCE
-        if near.sum() < MIN_PAIRS:
+        if np.count_nonzero(near) < MIN_PAIRS:
             return None
-        normals = self.normals[partner[near]]
-        residuals = np.sum((laid[near] - self.points[partner[near]]) * normals, axis=1)
+        partner = partner[near]
+        normals = self.normals[partner]
+        residuals = np.einsum("ij,ij->i", laid[near] - self.points[partner], normals)
         return near, normals, residuals
 
     def points_on_lines(self, points, pose):
@@ -57,10 +60,11 @@ def _normals(points, tree):
     return vectors[:, :, 0]  # the direction of least spread: across the line
 
 
-def align(target, points, start, iterations=ITERATIONS):
+def align(target, points, start, iterations=ITERATIONS, settled=SETTLED):
     """The pose (x, y, theta) of `points` (their own frame) in `target`'s frame that lays them on
     its lines, from `start`, and the Gauss-Newton Hessian there (in the target's frame, per m^2 of
-    residual); None when too few points find a partner."""
+    residual); None when too few points find a partner. It stops after a step smaller than
+    `settled` (m and rad)."""
     pose = np.array(start, dtype=np.float64)
     hessian = None
     for _ in range(iterations):
@@ -68,14 +72,15 @@ def align(target, points, start, iterations=ITERATIONS):
         if paired is None:
             return None
         near, normals, residuals = paired
-        used = points[near]
-        cos, sin = math.cos(pose[2]), math.sin(pose[2])
-        turned = np.column_stack((-sin * used[:, 0] - cos * used[:, 1], cos * used[:, 0] - sin * used[:, 1]))
-        jacobian = np.column_stack((normals, np.sum(normals * turned, axis=1)))
-        weights = np.minimum(1.0, HUBER / np.maximum(np.abs(residuals), 1e-12))
-        hessian = jacobian.T @ (jacobian * weights[:, None])
-        step = -np.linalg.solve(hessian + 1e-6 * np.eye(3), jacobian.T @ (residuals * weights))
+        # How each point moves as theta grows: its position turned a further quarter turn.
+        turned = transform_points((0.0, 0.0, pose[2] + math.pi / 2.0), points[near])
+        jacobian = np.empty((len(normals), 3))
+        jacobian[:, :2] = normals
+        jacobian[:, 2] = np.einsum("ij,ij->i", normals, turned)
+        weighted = jacobian.T * np.minimum(1.0, HUBER / np.maximum(np.abs(residuals), 1e-12))
+        hessian = weighted @ jacobian
+        step = -np.linalg.solve(hessian + DAMPING, weighted @ residuals)
         pose += step
-        if np.abs(step).max() < 1e-6:
+        if np.abs(step).max() < settled:
             break
     return tuple(float(value) for value in pose), hessian
