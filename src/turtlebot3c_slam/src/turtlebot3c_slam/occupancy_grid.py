@@ -156,7 +156,7 @@ class LogOddsGrid:
     def shape(self):
         return self.log_odds.shape
 
-    def _ensure(self, low, high):
+    def reserve(self, low, high):
         """Grow the arrays so lattice cells low..high (inclusive, (i, j)) are inside."""
         height, width = self.log_odds.shape
         if width and (low >= self.offset).all() and (high < self.offset + (width, height)).all():
@@ -200,7 +200,7 @@ class LogOddsGrid:
         bounds = update.bounds()
         if bounds is None:
             return
-        self._ensure(*bounds)
+        self.reserve(*bounds)
         for cells, value in ((update.free, self.free_log_odds), (update.hits, self.hit_log_odds)):
             if len(cells):
                 flat = self._flat_indices(cells)

@@ -449,13 +449,22 @@ class Slam:
         """The local map's array afresh from the keyframes it holds. Its array only grows, and a
         long session would leave it as wide as the whole floor at the fine matching resolution:
         gigabytes on a corridor a kilometre long, for the last few metres of keyframes."""
-        self.local_grid = self._new_grid(self.config.match_resolution)
+        self.local_grid = self._empty_local_grid()
         for _, update in self.local_updates:
             self.local_grid.apply(update)
         self._local_version += 1
 
+    def _empty_local_grid(self):
+        """A new local map grid, already as large as its keyframes' updates: drawn in one by one,
+        they would grow it (a copy of the whole array) several times each time."""
+        grid = self._new_grid(self.config.match_resolution)
+        covered = [update.bounds() for _, update in self.local_updates if update.bounds() is not None]
+        if covered:
+            grid.reserve(np.min([low for low, _ in covered], axis=0), np.max([high for _, high in covered], axis=0))
+        return grid
+
     def _rebuild_local_map(self):
-        self.local_grid = self._new_grid(self.config.match_resolution)
+        self.local_grid = self._empty_local_grid()
         rebuilt = collections.deque()
         for index, _ in self.local_updates:
             update = self.local_grid.trace(self.keyframes[index].rays, tuple(self.graph.poses[index]))
