@@ -119,7 +119,8 @@ def converter() -> Path:
     CONVERTER.parent.mkdir(parents=True, exist_ok=True)
     includes = [f"-I{folder}" for folder in sorted(MRPT_INCLUDE.glob("*/include"))]
     includes += ["-I/usr/include/eigen3", "-I/usr/include/suitesparse"]
-    partial = CONVERTER.with_suffix(".partial")
+    # Its own name per process: benchmarks run side by side (one per severity) may build at once.
+    partial = CONVERTER.with_name(f"{CONVERTER.name}.{os.getpid()}.partial")
     command = [compiler, "-std=c++17", "-O2", *includes, str(CONVERTER_SOURCE), "-o", str(partial),
                *(f"-l{library}" for library in MRPT_LIBRARIES)]
     built = subprocess.run(command, capture_output=True, text=True)
