@@ -24,7 +24,7 @@ import numpy as np
 
 from turtlebot3c_common.se2 import relative, transform_points
 from turtlebot3c_sim.evaluation import contradicts, relative_pose_errors
-from turtlebot3c_slam import scan_refinement
+from turtlebot3c_slam import line_icp, scan_refinement
 
 NEIGHBOUR_SCANS = 3     # consistency: each scan against the next three
 FLOOR_SPACING = 0.5     # m: a dense log is thinned to scans this far apart for the floor (cost)
@@ -63,7 +63,7 @@ def consistency(scans, trajectory):
 
 def most_consistent_trajectory(scans, reference):
     """The trajectory that agrees best with the scans, found from the reference (see the module's doc)."""
-    return scan_refinement.refine(scan_refinement.chain(reference), scans.clouds)
+    return scan_refinement.refine(scan_refinement.chain(reference), scans.clouds, line_icp.SETTLED)
 
 
 def floor(log):

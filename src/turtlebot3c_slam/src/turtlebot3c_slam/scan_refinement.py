@@ -36,8 +36,10 @@ FIRST_ESTIMATE_INFORMATION = np.diag([1.0, 1.0, 100.0])
 MAX_SHIFT = 0.3         # m
 MAX_TURN = 0.1          # rad
 ICP_ITERATIONS = 10     # from an estimate this close ICP settles in a few
-# m and rad: a match whose step is this small has settled, far below the scans' 1 cm noise
-# (freiburg-079: half the ICP iterations of 1e-6, the same refined poses).
+# m and rad: a match whose step is this small has settled, far below the scans' 1 cm noise.
+# On freiburg-079 it takes half the ICP iterations of line_icp.SETTLED, for the same error.
+# Stopping early leaves a pose a little nearer its start, so a measurement of how far the
+# scans pull poses from where they start (benchmarks/scan_consistency) settles to the end.
 SETTLED = 1e-3
 HUBER_DELTA = 3.0
 ITERATIONS = 20
@@ -62,16 +64,17 @@ def match(target, source_points, start, iterations=line_icp.ITERATIONS, settled=
     return pose, to_pose_frame.T @ hessian @ to_pose_frame / RANGE_SIGMA ** 2
 
 
-def refine(graph, clouds):
+def refine(graph, clouds, settled=SETTLED):
     """The poses (N x 3) of `graph` (a PoseGraph of N nodes, kept as it is) that agree best with the
     scans `clouds` (N LineClouds, each in its node's frame): the graph's own edges, plus an ICP
-    match between every pair of nodes near each other, optimised from the graph's poses."""
+    match between every pair of nodes near each other, optimised from the graph's poses. Each
+    match stops at a step below `settled` (m and rad)."""
     refined = copy.deepcopy(graph)
     poses = graph.poses
     for i in range(len(poses)):
         for j in _partners(poses, i):
             start = relative(tuple(poses[i]), tuple(poses[j]))
-            matched = match(clouds[i], clouds[j].points, start, ICP_ITERATIONS, SETTLED)
+            matched = match(clouds[i], clouds[j].points, start, ICP_ITERATIONS, settled)
             if matched is not None and _within_reach(start, matched[0]):
                 refined.add_edge(i, j, matched[0], matched[1], robust=True)
     refined.optimize(iterations=ITERATIONS)
