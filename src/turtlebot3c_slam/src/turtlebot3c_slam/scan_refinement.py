@@ -9,7 +9,7 @@ loop closures, or a chain of relative poses) hold together what the scans leave 
 Tracking lays each scan on a grid map of match_resolution cells, and a loop closure lays it on a
 submap: both leave centimetres and tenths of a degree between neighbouring keyframes, and those
 add up along the path. Once the loops are closed the first estimate is within ICP's reach, and
-this takes much of that error out. It costs a fifth to two fifths of the SLAM's own time, so it
+this takes much of that error out. It costs a twentieth to a sixth of the SLAM's own time, so it
 runs once, at the end of a session (remap_bag).
 """
 import copy
