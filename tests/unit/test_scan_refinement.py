@@ -21,6 +21,14 @@ def scans(log):
     return scan_consistency.ScanSet(log)
 
 
+@pytest.fixture(scope="module")
+def shaken(log):
+    """The reference poses shaken by centimetres and hundredths of a radian."""
+    poses = log.reference + np.random.RandomState(1).normal(0.0, 1.0, log.reference.shape) * (0.05, 0.05, 0.01)
+    poses[0] = log.reference[0]  # the first pose stays where it is: the frames coincide
+    return poses
+
+
 def relations_error(log, poses):
     return relative_pose_errors(np.asarray(poses), log.reference, log.travel()).translation
 
@@ -32,19 +40,15 @@ def test_icp_finds_a_scan_laid_over_itself_from_a_start_that_is_off(log):
     assert np.all(np.linalg.eigvalsh(information) > 0)
 
 
-def test_poses_shaken_by_centimetres_are_brought_back_to_where_the_scans_agree(log, scans):
-    shaken = log.reference + np.random.RandomState(1).normal(0.0, 1.0, log.reference.shape) * (0.05, 0.05, 0.01)
-    shaken[0] = log.reference[0]  # the first pose stays where it is: the frames coincide
+def test_poses_shaken_by_centimetres_are_brought_back_to_where_the_scans_agree(log, scans, shaken):
     refined = scan_refinement.refine(scan_refinement.chain(shaken), scans.clouds)
     assert relations_error(log, shaken) > 0.06
     assert relations_error(log, refined) < 0.5 * relations_error(log, shaken)
 
 
-def test_matches_that_stop_at_the_refinements_step_land_where_fully_settled_ones_do(log, scans):
+def test_matches_that_stop_at_the_refinements_step_land_where_fully_settled_ones_do(log, scans, shaken):
     """The refinement stops each ICP match at a step of SETTLED (1 mm), not line_icp's 1e-6: half
     the iterations, and poses within a few millimetres of the fully settled ones."""
-    shaken = log.reference + np.random.RandomState(1).normal(0.0, 1.0, log.reference.shape) * (0.05, 0.05, 0.01)
-    shaken[0] = log.reference[0]
     early = scan_refinement.refine(scan_refinement.chain(shaken), scans.clouds)
     settled = scan_refinement.refine(scan_refinement.chain(shaken), scans.clouds, line_icp.SETTLED)
     apart = early - settled
