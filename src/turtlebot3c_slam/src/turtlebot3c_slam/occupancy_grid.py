@@ -186,6 +186,12 @@ class LogOddsGrid:
         """The scan's CellUpdate on this grid: rays without a hit stop at the walls it holds."""
         return trace_scan(rays, pose, self.resolution, self.cell_shift, walls=self.occupied)
 
+    def hits_of(self, rays, pose):
+        """The scan's CellUpdate with its hits alone, no free cells: a map for scan matching,
+        which needs only where the obstacles are, at a small part of a trace's cost."""
+        cells, sums, counts = hit_cells(transform_points(pose, rays.hits), self.resolution, self.cell_shift)
+        return CellUpdate(np.empty((0, 2), np.int64), cells, sums, counts)
+
     def occupied(self, cells):
         """Whether each lattice cell (N, 2) holds more hits than misses (False outside the array)."""
         height, width = self.log_odds.shape
