@@ -203,6 +203,17 @@ def test_a_slip_further_than_the_tracking_window_is_found_by_a_second_wider_sear
     assert math.hypot(tracked[0] - slipped[0], tracked[1] - slipped[1]) < 0.03 and abs(tracked[2]) < 0.01
 
 
+def test_the_tracking_map_holds_the_keyframes_hits_and_none_of_the_free_space_they_saw():
+    """Matching needs only where the obstacles are, and tracing the free space into the fine
+    tracking grid took a quarter of the SLAM's time; the published map still traces it."""
+    slam, _, _ = slam_tracking_in_a_room()
+    local = slam.local_grid
+    assert (local.hit_counts > 0).sum() > 100
+    assert np.array_equal(local.observations > 0, local.hit_counts > 0)
+    published = slam.occupancy_map().data
+    assert (published == 0).sum() > (published == 100).sum() > 100
+
+
 def test_the_local_map_covers_the_last_keyframes_not_the_whole_path():
     """A long corridor must not leave the fine tracking grid as long as the corridor (gigabytes
     on a kilometre of real corridor): it holds the last local_map_keyframes, so its size too."""
