@@ -17,12 +17,12 @@ How it works:
   took a quarter of the time while the real-data figures were no better for it), searching
   a window around the prediction that is as wide as odometry may be wrong: 3 sigma, where
   sigma grows with the distance, turn and time since the last good match (a real robot's
-  wheels slip, scans may come a metre apart). The correlative search (scan_matcher, branch and bound) finds the cell and
-  angle step; a Gauss-Newton step on the interpolated field refines it below a cell. A poor
-  match (score below `match_min_score`) is searched again over the widest window (a slip);
-  if that is poor too, the scan keeps odometry, and the next scan searches wider. It
-  does not become a keyframe either (unless poor matches go on), so a guessed pose never
-  draws the local map that the next scans match against.
+  wheels slip, scans may come a metre apart). The correlative search (scan_matcher, branch
+  and bound) finds the cell and angle step; a Gauss-Newton step on the interpolated field
+  refines it below a cell. A poor match (score below `match_min_score`) is searched again
+  over the widest window (a slip); if that is poor too, the scan keeps odometry, and the
+  next scan searches wider. It does not become a keyframe either (unless poor matches go
+  on), so a guessed pose never draws the local map that the next scans match against.
 - *Keyframes*: after `keyframe_distance` metres or `keyframe_angle` radians, the scan becomes
   a node of the pose graph, chained to the previous keyframe by the tracked relative pose.
 - *Loop closure*: a new keyframe near an old part of the trajectory (more than
