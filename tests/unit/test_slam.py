@@ -15,7 +15,7 @@ from turtlebot3c_sim.evaluation import (
     occupied_precision,
 )
 from turtlebot3c_sim.simulation import NoiseConfig, Simulation
-from turtlebot3c_sim.world import load_world
+from turtlebot3c_sim.world import load_world, world_from_description
 from turtlebot3c_slam.line_icp import LineCloud, align
 from turtlebot3c_slam.occupancy_grid import LogOddsGrid, trace_scan
 from turtlebot3c_slam.pose_graph import PoseGraph
@@ -203,6 +203,31 @@ def test_a_slip_further_than_the_tracking_window_is_found_by_a_second_wider_sear
     assert math.hypot(tracked[0] - slipped[0], tracked[1] - slipped[1]) < 0.03 and abs(tracked[2]) < 0.01
 
 
+def test_along_a_featureless_corridor_odometry_that_reads_short_is_corrected_by_what_features_taught():
+    """Where the scans cannot tell how far the robot went, the prediction stands: odometry that
+    reads 10 % short, corrected by the scale learnt while boxes along the walls pinned each
+    match, draws the corridor to near its true length, and the featureless part unlearns nothing."""
+    boxes = [{"type": "box", "center": [0.5 + 0.6 * k, 0.85 if k % 2 == 0 else -0.85], "size": [0.3, 0.3]}
+             for k in range(6)]
+    corridor = world_from_description({"name": "corridor", "obstacles": boxes + [
+        {"type": "wall", "from": [-2.0, -1.0], "to": [30.0, -1.0], "thickness": 0.1},
+        {"type": "wall", "from": [-2.0, 1.0], "to": [30.0, 1.0], "thickness": 0.1},
+        {"type": "wall", "from": [-2.0, -1.0], "to": [-2.0, 1.0], "thickness": 0.1}]})
+    geometry = ScanGeometry(-math.pi, 2 * math.pi / 360, 360, 0.12, 3.5)
+    angles = -math.pi + np.arange(360) * 2 * math.pi / 360
+    slam = Slam()
+    learnt = None
+    for step in range(121):   # 12 m; beyond 7 m the boxes and the end wall are out of reach
+        x = 0.1 * step
+        tracked = slam.add_scan(0.2 * step, corridor.raycast(x, 0.0, angles, 3.5), geometry, (0.9 * x, 0.0, 0.0))
+        if step == 70:
+            learnt = slam.odometry_scale.scale
+    # Learnt over 7 m, against the prior that odometry is right: most of the 11 %.
+    assert 1.05 < learnt < 1 / 0.9 + 0.01
+    assert slam.odometry_scale.scale == pytest.approx(learnt, abs=0.005)
+    assert tracked[0] == pytest.approx(12.0, abs=0.35)   # odometry alone: 10.8 m
+
+
 def test_the_tracking_map_holds_the_keyframes_hits_and_none_of_the_free_space_they_saw():
     """Matching needs only where the obstacles are, and tracing the free space into the fine
     tracking grid took a quarter of the SLAM's time; the published map still traces it."""
@@ -305,17 +330,22 @@ def test_matcher_finds_a_shifted_and_turned_scan():
     assert result.score > 0.8
 
 
-def test_prior_keeps_the_predicted_position_along_a_featureless_corridor():
+def corridor_matcher():
+    """A matcher over a featureless corridor along x (walls at y = +-0.5), and its scan's rays."""
     geometry = ScanGeometry(-math.pi, 2 * math.pi / 360, 360, 0.1, 3.5)
     angles = -math.pi + np.arange(360) * 2 * math.pi / 360
     with np.errstate(divide="ignore"):
-        ranges = np.abs(0.5 / np.sin(angles))  # walls at y = +-0.5, endless along x
+        ranges = np.abs(0.5 / np.sin(angles))
     rays = scan_rays(geometry, np.where(ranges < 3.5, ranges, np.inf), 8.0)
     grid = LogOddsGrid(0.025)
     grid.apply(trace_scan(rays, (0.0, 0.0, 0.0), 0.025))
     low = np.array([-160, -40])
-    matcher = GridMatcher(sparse_likelihood_field((80, 320), *grid.obstacles(low, np.array([320, 80]))),
-                          low, 0.025, levels=3)
+    return GridMatcher(sparse_likelihood_field((80, 320), *grid.obstacles(low, np.array([320, 80]))),
+                       low, 0.025, levels=3), rays
+
+
+def test_prior_keeps_the_predicted_position_along_a_featureless_corridor():
+    matcher, rays = corridor_matcher()
     prior = (0.03, 0.0, 0.0)
     result = matcher.match(rays.hits, prior, 0.1, 0.05, prior_sigmas=(0.05, 0.05))
     assert result.pose[0] == pytest.approx(0.03, abs=1e-9)
@@ -332,7 +362,6 @@ def room_rays():
 
 
 def load_world_from_text():
-    from turtlebot3c_sim.world import world_from_description
     return world_from_description({"name": "room", "obstacles": [
         {"type": "wall", "from": [-2.0, -1.5], "to": [2.0, -1.5], "thickness": 0.1},
         {"type": "wall", "from": [2.0, -1.5], "to": [2.0, 1.5], "thickness": 0.1},

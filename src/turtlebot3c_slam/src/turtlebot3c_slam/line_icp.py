@@ -53,6 +53,12 @@ class LineCloud:
         return 0 if paired is None else int((np.abs(paired[2]) < ON_LINE).sum())
 
 
+def line_normals(points):
+    """The normal of a line fitted through each point (N, 2) and its nearest neighbours."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    return _normals(points, cKDTree(points))
+
+
 def _normals(points, tree):
     if len(points) < NORMAL_NEIGHBOURS:
         return np.zeros_like(points)

@@ -10,19 +10,21 @@ Use::
     slam.refine()                                  # at the end of a session (scan_refinement)
 
 How it works:
-- *Tracking*: odometry since the last scan predicts the pose; the scan is matched against a
-  local map made of the hits of the last `local_map_keyframes` keyframes (a grid that adds
-  each new keyframe's hits and takes back the oldest's; like Karto's, it traces no free
-  space: matching needs only the obstacles, and tracing ~10^5 cells per keyframe at 2.5 cm
-  took a quarter of the time while the real-data figures were no better for it), searching
-  a window around the prediction that is as wide as odometry may be wrong: 3 sigma, where
-  sigma grows with the distance, turn and time since the last good match (a real robot's
-  wheels slip, scans may come a metre apart). The correlative search (scan_matcher, branch
-  and bound) finds the cell and angle step; a Gauss-Newton step on the interpolated field
-  refines it below a cell. A poor match (score below `match_min_score`) is searched again
-  over the widest window (a slip); if that is poor too, the scan keeps odometry, and the
-  next scan searches wider. It does not become a keyframe either (unless poor matches go
-  on), so a guessed pose never draws the local map that the next scans match against.
+- *Tracking*: odometry since the last scan, its distance corrected by the scale learnt from
+  the earlier matches (odometry_scale), predicts the pose; the scan is
+  matched against a local map made of the hits of the last `local_map_keyframes` keyframes
+  (a grid that adds each new keyframe's hits and takes back the oldest's; like Karto's, it
+  traces no free space: matching needs only the obstacles, and tracing ~10^5 cells per
+  keyframe at 2.5 cm took a quarter of the time while the real-data figures were no better
+  for it), searching a window around the prediction that is as wide as odometry may be
+  wrong: 3 sigma, where sigma grows with the distance, turn and time since the last good
+  match (a real robot's wheels slip, scans may come a metre apart). The correlative search
+  (scan_matcher, branch and bound) finds the cell and angle step; a Gauss-Newton step on the
+  interpolated field refines it below a cell. A poor match (score below `match_min_score`)
+  is searched again over the widest window (a slip); if that is poor too, the scan keeps
+  odometry, and the next scan searches wider. It does not become a keyframe either (unless
+  poor matches go on), so a guessed pose never draws the local map that the next scans
+  match against.
 - *Keyframes*: after `keyframe_distance` metres or `keyframe_angle` radians, the scan becomes
   a node of the pose graph, chained to the previous keyframe by the tracked relative pose.
 - *Loop closure*: a new keyframe near an old part of the trajectory (more than
@@ -55,6 +57,7 @@ from turtlebot3c_common.se2 import compose, distance, inverse, relative, transfo
 from . import scan_refinement
 from .line_icp import LineCloud, align
 from .occupancy_grid import LogOddsGrid, hit_cells
+from .odometry_scale import OdometryScale, firmness_along_heading
 from .pose_graph import PoseGraph
 from .scan_matcher import FIELD_RADIUS, MAX_ANGLE_STEP, GridMatcher, sparse_likelihood_field, swept_bounds
 from .slam_scan import scan_rays, voxel_filter
@@ -104,6 +107,9 @@ class SlamConfig:
         ("odometry_error_turn", 0.12),    # rad per rad turned
         ("odometry_error_heading", 0.03),  # rad per m travelled
         ("odometry_error_time", 0.01),    # m and rad per s (a slipping wheel)
+        # m of firmly matched path after which a step's evidence counts half in learning
+        # odometry's scale (odometry_scale), by which each prediction's distance is corrected
+        ("odometry_scale_memory", 20.0),
         ("match_window_max_xy", 1.0),     # m
         ("match_window_max_theta", 0.7),  # rad
         # Below: keep odometry, and search wider next scan. A blinded LIDAR's garbage scores
@@ -299,6 +305,8 @@ class Slam:
         self.poor_matches = 0
         self._poor_streak = 0      # poorly matched scans in a row
         self._unmatched = UnmatchedMotion()
+        self._matched = True       # the last scan was matched (the first one's pose is odometry's)
+        self.odometry_scale = OdometryScale(self.config.odometry_scale_memory, self.config.odometry_error_distance)
         self._pending_closures = []
         self.rejected_loop_closures = 0
         # m of path from each keyframe to the newest along which drift builds up (_extend_drift_path)
@@ -334,8 +342,12 @@ class Slam:
         delta = relative(self.odom, odom_pose)
         self.travel += math.hypot(delta[0], delta[1])
         self._unmatched.add(delta, stamp)
-        predicted = compose(self.pose, delta)
-        self.pose = self._track(points, predicted)
+        predicted = compose(self.pose, self.odometry_scale.corrected(delta))
+        previous, previous_matched = self.pose, self._matched
+        self.pose, firmness = self._track(points, predicted)
+        self._matched = firmness is not None
+        if previous_matched and self._matched:
+            self.odometry_scale.learn(delta, relative(previous, self.pose), firmness)
         self.odom = odom_pose
         last = len(self.keyframes) - 1
         moved = relative(self.graph.poses[last], self.pose)
@@ -359,8 +371,10 @@ class Slam:
         return points
 
     def _track(self, points, predicted):
+        """The scan's pose, and how firmly its points pin it along the robot's heading
+        (odometry_scale.firmness_along_heading; None: not matched, the prediction kept)."""
         if len(points) < 10 or not self.local_updates:
-            return predicted
+            return predicted, None
         matcher, result = self._search(points, predicted, *self._tracking_window())
         if result.score < self.config.match_min_score:
             # A slip can throw the robot further than 3 sigma (fhw, severe: 0.44 m sideways in
@@ -371,10 +385,10 @@ class Slam:
         if result.score < self.config.match_min_score:
             self.poor_matches += 1
             self._poor_streak += 1
-            return predicted
+            return predicted, None
         self._poor_streak = 0
         self._unmatched = UnmatchedMotion(self._unmatched.stamp)
-        return matcher.refine(points, result.pose).pose
+        return matcher.refine(points, result.pose).pose, firmness_along_heading(points)
 
     def _search(self, points, predicted, window_xy, window_theta):
         """The tracking map's best match for the points within the window around `predicted`."""
