@@ -15,9 +15,10 @@ OdometryScale fits, by weighted least squares over the recent path,
 to the steps between scans that both matched well, and corrects each new step by it. Each step
 counts by how firmly its scan's shape pins the motion along the robot's heading (0 along a
 corridor, 1 in a room): a match that could only keep the prediction teaches nothing, where
-unweighted it would confirm whatever scale was learnt. Old evidence fades as new comes in (half of it after
-`memory` metres of firmly matched path), so the scale follows a change of floor; a prior of no
-error keeps it at 1 until the robot has moved, and limits bound it.
+counted like any other it would confirm whatever scale was learnt. Old evidence fades as new
+comes in (half of it after `memory` metres of firmly matched path), so the scale follows a
+change of floor; a prior of no error keeps it at 1 until the robot has moved, and limits
+bound it.
 
 Only the distance is corrected: learning the turn scale and heading drift as well did less for
 the real logs and, on one, turned the map the wrong way (docs/benchmarks.md).
@@ -44,7 +45,7 @@ class OdometryScale:
         self.memory = memory
         self._prior = (STEP_PRECISION / distance_error) ** 2
         self.scale = 1.0
-        self._odometry_squares = 0.0   # weighted sum of odometry's distance^2, faded with the path
+        self._odometry_squares = 0.0   # weighted sum of odometry's distance^2, faded as evidence comes in
         self._products = 0.0           # weighted sum of odometry's distance * the matched distance
 
     def corrected(self, step):

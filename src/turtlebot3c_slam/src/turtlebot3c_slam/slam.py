@@ -10,21 +10,21 @@ Use::
     slam.refine()                                  # at the end of a session (scan_refinement)
 
 How it works:
-- *Tracking*: odometry since the last scan, its distance corrected by the scale learnt from
-  the earlier matches (odometry_scale), predicts the pose; the scan is
-  matched against a local map made of the hits of the last `local_map_keyframes` keyframes
-  (a grid that adds each new keyframe's hits and takes back the oldest's; like Karto's, it
-  traces no free space: matching needs only the obstacles, and tracing ~10^5 cells per
-  keyframe at 2.5 cm took a quarter of the time while the real-data figures were no better
-  for it), searching a window around the prediction that is as wide as odometry may be
-  wrong: 3 sigma, where sigma grows with the distance, turn and time since the last good
-  match (a real robot's wheels slip, scans may come a metre apart). The correlative search
-  (scan_matcher, branch and bound) finds the cell and angle step; a Gauss-Newton step on the
-  interpolated field refines it below a cell. A poor match (score below `match_min_score`)
-  is searched again over the widest window (a slip); if that is poor too, the scan keeps
-  odometry, and the next scan searches wider. It does not become a keyframe either (unless
-  poor matches go on), so a guessed pose never draws the local map that the next scans
-  match against.
+- *Tracking*: odometry since the last scan predicts the pose, its distance corrected by the
+  scale learnt from the earlier matches (odometry_scale: a corridor otherwise takes the
+  length odometry reads). The scan is matched against a local map made of the hits of the
+  last `local_map_keyframes` keyframes (a grid that adds each new keyframe's hits and takes
+  back the oldest's; like Karto's, it traces no free space: matching needs only the
+  obstacles, and tracing ~10^5 cells per keyframe at 2.5 cm took a quarter of the time while
+  the real-data figures were no better for it), searching a window around the prediction
+  that is as wide as odometry may be wrong: 3 sigma, where sigma grows with the distance,
+  turn and time since the last good match (a real robot's wheels slip, scans may come a
+  metre apart). The correlative search (scan_matcher, branch and bound) finds the cell and
+  angle step; a Gauss-Newton step on the interpolated field refines it below a cell. A poor
+  match (score below `match_min_score`) is searched again over the widest window (a slip);
+  if that is poor too, the scan keeps odometry, and the next scan searches wider. It does
+  not become a keyframe either (unless poor matches go on), so a guessed pose never draws
+  the local map that the next scans match against.
 - *Keyframes*: after `keyframe_distance` metres or `keyframe_angle` radians, the scan becomes
   a node of the pose graph, chained to the previous keyframe by the tracked relative pose.
 - *Loop closure*: a new keyframe near an old part of the trajectory (more than
