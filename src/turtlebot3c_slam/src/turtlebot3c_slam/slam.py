@@ -344,10 +344,9 @@ class Slam:
         self._unmatched.add(delta, stamp)
         predicted = compose(self.pose, self.odometry_scale.corrected(delta))
         previous, previous_matched = self.pose, self._matched
-        self.pose, firmness = self._track(points, predicted)
-        self._matched = firmness is not None
+        self.pose, self._matched = self._track(points, predicted)
         if previous_matched and self._matched:
-            self.odometry_scale.learn(delta, relative(previous, self.pose), firmness)
+            self.odometry_scale.learn(delta, relative(previous, self.pose), firmness_along_heading(points))
         self.odom = odom_pose
         last = len(self.keyframes) - 1
         moved = relative(self.graph.poses[last], self.pose)
@@ -371,10 +370,9 @@ class Slam:
         return points
 
     def _track(self, points, predicted):
-        """The scan's pose, and how firmly its points pin it along the robot's heading
-        (odometry_scale.firmness_along_heading; None: not matched, the prediction kept)."""
+        """The scan's pose, and whether it was matched (False: the prediction kept)."""
         if len(points) < 10 or not self.local_updates:
-            return predicted, None
+            return predicted, False
         matcher, result = self._search(points, predicted, *self._tracking_window())
         if result.score < self.config.match_min_score:
             # A slip can throw the robot further than 3 sigma (fhw, severe: 0.44 m sideways in
@@ -385,10 +383,10 @@ class Slam:
         if result.score < self.config.match_min_score:
             self.poor_matches += 1
             self._poor_streak += 1
-            return predicted, None
+            return predicted, False
         self._poor_streak = 0
         self._unmatched = UnmatchedMotion(self._unmatched.stamp)
-        return matcher.refine(points, result.pose).pose, firmness_along_heading(points)
+        return matcher.refine(points, result.pose).pose, True
 
     def _search(self, points, predicted, window_xy, window_theta):
         """The tracking map's best match for the points within the window around `predicted`."""
