@@ -330,22 +330,17 @@ def test_matcher_finds_a_shifted_and_turned_scan():
     assert result.score > 0.8
 
 
-def corridor_matcher():
-    """A matcher over a featureless corridor along x (walls at y = +-0.5), and its scan's rays."""
+def test_prior_keeps_the_predicted_position_along_a_featureless_corridor():
     geometry = ScanGeometry(-math.pi, 2 * math.pi / 360, 360, 0.1, 3.5)
     angles = -math.pi + np.arange(360) * 2 * math.pi / 360
     with np.errstate(divide="ignore"):
-        ranges = np.abs(0.5 / np.sin(angles))
+        ranges = np.abs(0.5 / np.sin(angles))  # walls at y = +-0.5, endless along x
     rays = scan_rays(geometry, np.where(ranges < 3.5, ranges, np.inf), 8.0)
     grid = LogOddsGrid(0.025)
     grid.apply(trace_scan(rays, (0.0, 0.0, 0.0), 0.025))
     low = np.array([-160, -40])
-    return GridMatcher(sparse_likelihood_field((80, 320), *grid.obstacles(low, np.array([320, 80]))),
-                       low, 0.025, levels=3), rays
-
-
-def test_prior_keeps_the_predicted_position_along_a_featureless_corridor():
-    matcher, rays = corridor_matcher()
+    matcher = GridMatcher(sparse_likelihood_field((80, 320), *grid.obstacles(low, np.array([320, 80]))),
+                          low, 0.025, levels=3)
     prior = (0.03, 0.0, 0.0)
     result = matcher.match(rays.hits, prior, 0.1, 0.05, prior_sigmas=(0.05, 0.05))
     assert result.pose[0] == pytest.approx(0.03, abs=1e-9)
