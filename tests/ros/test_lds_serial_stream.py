@@ -40,7 +40,7 @@ def test_stream_reopens_an_unplugged_device_and_reports_it_once(tmp_path):
         wait_until(lambda: device.read(0.05) == b"e", 5, "the motor stop command never arrived")
     finally:
         stream.close()
-        device.unplug()
+        device.close()
     errors = len(log.lines)
     assert stream.read() == b"" and len(log.lines) == errors  # closed for good: silent
 

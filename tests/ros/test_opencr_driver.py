@@ -78,7 +78,7 @@ class BoardServer:
     def close(self):
         self._stop.set()
         self._thread.join(2.0)
-        self.link.unplug()
+        self.link.close()
 
 
 class Runner:
@@ -260,7 +260,7 @@ def test_a_board_that_never_answers_gets_a_firmware_hint(tmp_path):
         assert "cannot reach the OpenCR" in message and "ROS 2 TurtleBot3 firmware" in message
     finally:
         runner.close()
-        silent.unplug()
+        silent.close()
 
 
 def test_a_restarted_driver_resumes_the_odometry_of_the_one_that_died(board):

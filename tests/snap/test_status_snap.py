@@ -97,8 +97,9 @@ class Robot:
 
     def replug_opencr(self):
         """Plug the OpenCR back in and point opencr-port at it again. The fake board comes back on
-        a new pty behind the same link, where a robot's /dev/ttyACM0 stays the same name: left on
-        the old pty, the driver would reach whatever took that number next (another test's fake)."""
+        a new pty behind the same link, where a robot's /dev/ttyACM0 stays the same name. The old
+        pty's number stays taken while the fake lives (PtyLink), so the driver left on it finds no
+        device meanwhile, rather than another test's terminal."""
         self.fake("replug opencr")
         link = self.control.parent / "ttyACM0"
         wait_until(link.exists, 30, "the replugged OpenCR never appeared")

@@ -70,7 +70,7 @@ class DeviceThread(threading.Thread):
             self.error = repr(error)
             raise
         finally:
-            self.link.unplug()
+            self.link.close()
             with self._applied:
                 self._applied.notify_all()
 

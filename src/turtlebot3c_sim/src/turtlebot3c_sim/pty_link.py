@@ -3,10 +3,14 @@
 `plug()` creates the pty and points the symlink at its slave end; `unplug()`
 removes the symlink and closes the pty, so a host that had the port open gets
 I/O errors, as with a USB cable pulled out. Replugging creates a new pty behind
-the same symlink. The device keeps its own slave descriptor open in raw mode
-so that the line discipline never echoes or translates bytes, even before the
-host configures the port. Writes never block: bytes the host does not read in
-time are dropped once the pty's buffer is full, as a serial line would lose them.
+the same symlink. An unplugged pty's number stays taken until `close()`: a host
+still pointed at /dev/pts/N then finds no device, as a robot's /dev/ttyACM0 is
+gone when its cable is, instead of opening whatever pty took the number next
+(another test's terminal, whose settings it would change). The device keeps
+its own slave descriptor open in raw mode so that the line discipline never
+echoes or translates bytes, even before the host configures the port. Writes
+never block: bytes the host does not read in time are dropped once the pty's
+buffer is full, as a serial line would lose them.
 """
 import errno
 import os
@@ -28,6 +32,7 @@ class PtyLink:
         self._slave = None
         self.slave_name = None
         self.dropped_bytes = 0
+        self._unplugged_slaves = []  # held open: the kernel gives a pty's number again once all its ends close
 
     @property
     def plugged(self) -> bool:
@@ -56,12 +61,16 @@ class PtyLink:
                 os.unlink(self.path)
         except OSError:
             pass
-        for fd in (self._master, self._slave):
-            try:
-                os.close(fd)
-            except OSError:
-                pass
+        _close_quietly(self._master)
+        self._unplugged_slaves.append(self._slave)
         self._master = self._slave = None
+
+    def close(self):
+        """Unplug for good: the numbers of the ptys this link had can now go to new ones."""
+        self.unplug()
+        for fd in self._unplugged_slaves:
+            _close_quietly(fd)
+        self._unplugged_slaves = []
 
     def host_baud(self):
         """The baud rate the host last set on the port (a pty keeps it, though it sends at any rate), or None."""
@@ -100,3 +109,10 @@ class PtyLink:
             pass
         self.dropped_bytes += len(data) - sent
         return sent
+
+
+def _close_quietly(fd: int):
+    try:
+        os.close(fd)
+    except OSError:
+        pass
