@@ -345,7 +345,9 @@ class Slam:
         predicted = compose(self.pose, self.odometry_scale.corrected(delta))
         previous, previous_matched = self.pose, self._matched
         self.pose, self._matched = self._track(points, predicted)
-        if previous_matched and self._matched:
+        # A step odometry read as no motion teaches the scale nothing: spare its scan's k-d tree
+        # (a robot standing still while mapping runs).
+        if previous_matched and self._matched and (delta[0] or delta[1]):
             self.odometry_scale.learn(delta, relative(previous, self.pose), firmness_along_heading(points))
         self.odom = odom_pose
         last = len(self.keyframes) - 1
