@@ -221,11 +221,25 @@ def test_along_a_featureless_corridor_odometry_that_reads_short_is_corrected_by_
         x = 0.1 * step
         tracked = slam.add_scan(0.2 * step, corridor.raycast(x, 0.0, angles, 3.5), geometry, (0.9 * x, 0.0, 0.0))
         if step == 70:
-            learnt = slam.odometry_scale.scale
+            learnt = slam.odometry_calibration.distance_scale
     # Learnt over 7 m, against the prior that odometry is right: most of the 11 %.
     assert 1.05 < learnt < 1 / 0.9 + 0.01
-    assert slam.odometry_scale.scale == pytest.approx(learnt, abs=0.005)
+    assert slam.odometry_calibration.distance_scale == pytest.approx(learnt, abs=0.005)
     assert tracked[0] == pytest.approx(12.0, abs=0.35)   # odometry alone: 10.8 m
+
+
+def test_turning_on_the_spot_teaches_how_far_odometry_turns_and_nothing_about_distance():
+    """Odometry whose turns read 30 % short (a track width off): a turn on the spot moves its x
+    and y not at all, and still teaches the turn scale, by which the next turns are predicted."""
+    slam, geometry, angles = slam_tracking_in_a_room()   # at the room's centre, heading 0
+    distance_scale = slam.odometry_calibration.distance_scale
+    for step in range(1, 11):
+        truth = (0.0, 0.0, 0.2 * step)
+        tracked = slam.add_scan(2.0 + step, room_ranges(truth, angles), geometry, (0.0, 0.0, 0.14 * step))
+        assert abs(tracked[2] - truth[2]) < 0.02
+    assert slam.odometry_calibration.turn_scale == pytest.approx(1 / 0.7, rel=0.05)
+    assert slam.odometry_calibration.corrected((0.0, 0.0, 0.14))[2] == pytest.approx(0.2, abs=0.01)
+    assert slam.odometry_calibration.distance_scale == distance_scale
 
 
 def test_the_tracking_map_holds_the_keyframes_hits_and_none_of_the_free_space_they_saw():

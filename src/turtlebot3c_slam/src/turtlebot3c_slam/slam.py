@@ -10,10 +10,11 @@ Use::
     slam.refine()                                  # at the end of a session (scan_refinement)
 
 How it works:
-- *Tracking*: odometry since the last scan predicts the pose, its distance corrected by the
-  scale learnt from the earlier matches (odometry_scale: a corridor otherwise takes the
-  length odometry reads). The scan is matched against a local map made of the hits of the
-  last `local_map_keyframes` keyframes (a grid that adds each new keyframe's hits and takes
+- *Tracking*: odometry since the last scan predicts the pose, corrected by how odometry was
+  seen to err in the earlier matches (odometry_calibration: distances and turns that read
+  long or short, a heading that drifts; a corridor otherwise takes the length odometry
+  reads). The scan is matched against a local map made of the hits of the last
+  `local_map_keyframes` keyframes (a grid that adds each new keyframe's hits and takes
   back the oldest's; like Karto's, it traces no free space: matching needs only the
   obstacles, and tracing ~10^5 cells per keyframe at 2.5 cm took a quarter of the time while
   the real-data figures were no better for it), searching a window around the prediction
@@ -57,7 +58,7 @@ from turtlebot3c_common.se2 import compose, distance, inverse, relative, transfo
 from . import scan_refinement
 from .line_icp import LineCloud, align
 from .occupancy_grid import LogOddsGrid, hit_cells
-from .odometry_scale import OdometryScale, firmness_along_heading
+from .odometry_calibration import OdometryCalibration, firmness_along_heading
 from .pose_graph import PoseGraph
 from .scan_matcher import FIELD_RADIUS, MAX_ANGLE_STEP, GridMatcher, sparse_likelihood_field, swept_bounds
 from .slam_scan import scan_rays, voxel_filter
@@ -107,8 +108,8 @@ class SlamConfig:
         ("odometry_error_turn", 0.12),    # rad per rad turned
         ("odometry_error_heading", 0.03),  # rad per m travelled
         ("odometry_error_time", 0.01),    # m and rad per s (a slipping wheel)
-        # m of firmly matched path after which a step's evidence counts half in learning
-        # odometry's scale (odometry_scale), by which each prediction's distance is corrected
+        # m of path after which a step's evidence counts half in learning how odometry errs
+        # (odometry_calibration), by which each prediction is corrected
         ("odometry_scale_memory", 20.0),
         ("match_window_max_xy", 1.0),     # m
         ("match_window_max_theta", 0.7),  # rad
@@ -306,7 +307,9 @@ class Slam:
         self._poor_streak = 0      # poorly matched scans in a row
         self._unmatched = UnmatchedMotion()
         self._matched = True       # the last scan was matched (the first one's pose is odometry's)
-        self.odometry_scale = OdometryScale(self.config.odometry_scale_memory, self.config.odometry_error_distance)
+        self.odometry_calibration = OdometryCalibration(
+            self.config.odometry_scale_memory, self.config.odometry_error_distance, self.config.odometry_error_turn,
+            self.config.odometry_error_heading)
         self._pending_closures = []
         self.rejected_loop_closures = 0
         # m of path from each keyframe to the newest along which drift builds up (_extend_drift_path)
@@ -342,13 +345,11 @@ class Slam:
         delta = relative(self.odom, odom_pose)
         self.travel += math.hypot(delta[0], delta[1])
         self._unmatched.add(delta, stamp)
-        predicted = compose(self.pose, self.odometry_scale.corrected(delta))
+        predicted = compose(self.pose, self.odometry_calibration.corrected(delta))
         previous, previous_matched = self.pose, self._matched
         self.pose, self._matched = self._track(points, predicted)
-        # A step odometry read as no motion teaches the scale nothing: spare its scan's k-d tree
-        # (a robot standing still while mapping runs).
-        if previous_matched and self._matched and (delta[0] or delta[1]):
-            self.odometry_scale.learn(delta, relative(previous, self.pose), firmness_along_heading(points))
+        if previous_matched and self._matched:
+            self._learn_odometry(delta, relative(previous, self.pose), points)
         self.odom = odom_pose
         last = len(self.keyframes) - 1
         moved = relative(self.graph.poses[last], self.pose)
@@ -358,6 +359,13 @@ class Slam:
             last = len(self.keyframes) - 1
         self._scans.append((stamp, last, relative(tuple(self.graph.poses[last]), self.pose)))
         return self.pose
+
+    def _learn_odometry(self, delta, matched, points):
+        self.odometry_calibration.learn_turn(delta, matched)
+        # A step odometry read as no motion teaches the distance nothing: spare its scan's k-d
+        # tree (a robot standing still, or turning on the spot, while mapping runs).
+        if delta[0] or delta[1]:
+            self.odometry_calibration.learn_distance(delta, matched, firmness_along_heading(points))
 
     @property
     def map_to_odom(self):
