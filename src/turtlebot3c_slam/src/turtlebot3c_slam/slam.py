@@ -21,9 +21,10 @@ How it works:
   that is as wide as odometry may be wrong: 3 sigma, where sigma grows with the distance,
   turn and time since the last good match (a real robot's wheels slip, scans may come a
   metre apart). The correlative search (scan_matcher, branch and bound) finds the cell and
-  angle step; a Gauss-Newton step on the interpolated field refines it below a cell. A poor
-  match (score below `match_min_score`) is searched again over the widest window (a slip);
-  if that is poor too, the scan keeps odometry, and the next scan searches wider. It does
+  angle step; a Gauss-Newton step on the interpolated field refines it below a cell. A
+  doubtful match (score below `match_wide_score`) is searched again over the widest window (a
+  slip), and the better of the two kept; below `match_min_score`, the scan keeps odometry,
+  and the next scan searches wider. It does
   not become a keyframe either (unless poor matches go on), so a guessed pose never draws
   the local map that the next scans match against.
 - *Keyframes*: after `keyframe_distance` metres or `keyframe_angle` radians, the scan becomes
@@ -116,6 +117,8 @@ class SlamConfig:
         # Below: keep odometry, and search wider next scan. A blinded LIDAR's garbage scores
         # 0.01-0.03; a right match of sparse real scans that see much new ground, 0.08-0.2.
         ("match_min_score", 0.1),
+        # Below: search the widest window as well, and keep the better match
+        ("match_wide_score", 0.2),
         ("match_points", 300),            # at most this many scan points are matched
         ("loop_search_radius", 3.0),      # m between a new keyframe and an old one to try closing
         ("loop_min_travel", 6.0),         # m of path between them
@@ -384,12 +387,16 @@ class Slam:
         if len(points) < 10 or not self.local_updates:
             return predicted, False
         matcher, result = self._search(points, predicted, *self._tracking_window())
-        if result.score < self.config.match_min_score:
+        if result.score < self.config.match_wide_score:
             # A slip can throw the robot further than 3 sigma (fhw, severe: 0.44 m sideways in
             # one scan against a 0.31 m window, and the guess drawn into the map turned the rest
-            # of the log 12 degrees): before keeping odometry, search the widest window once.
-            matcher, result = self._search(points, predicted, self.config.match_window_max_xy,
-                                           self.config.match_window_max_theta)
+            # of the log 12 degrees). Within the window the best may then be a doubtful match
+            # that is wrong (acapulco, severe: a slip read as a 13-degree turn left the truth
+            # out, and a pose 20 degrees off scored 0.13): search the widest window once.
+            wide_matcher, wide = self._search(points, predicted, self.config.match_window_max_xy,
+                                              self.config.match_window_max_theta)
+            if wide.score > result.score:
+                matcher, result = wide_matcher, wide
         if result.score < self.config.match_min_score:
             self.poor_matches += 1
             self._poor_streak += 1
