@@ -192,11 +192,13 @@ def test_a_scan_that_matches_poorly_never_becomes_a_keyframe_unless_poor_ones_go
     assert slam.poor_matches == 2 and len(slam.keyframes) == keyframes + 1  # lost for good: map on
 
 
-def test_a_slip_further_than_the_tracking_window_is_found_by_a_second_wider_search():
+@pytest.mark.parametrize("wide_score", [0.2, 0.0])
+def test_a_slip_further_than_the_tracking_window_is_found_by_a_second_wider_search(wide_score):
     """A wheel slip can throw the robot further than 3 sigma of odometry's error: the match
     around the prediction is poor, and the scan is searched again over the widest window rather
-    than left at odometry's guess."""
+    than left at odometry's guess, even with match_wide_score set below match_min_score."""
     slam, geometry, angles = slam_tracking_in_a_room()
+    slam.config.match_wide_score = wide_score
     slipped = (0.7, 0.4, 0.0)  # odometry says (0.3, 0, 0): 0.57 m off, the window is 0.2 m
     tracked = slam.add_scan(3.0, room_ranges(slipped, angles), geometry, (0.3, 0.0, 0.0))
     assert slam.poor_matches == 0

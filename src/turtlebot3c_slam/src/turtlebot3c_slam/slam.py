@@ -387,7 +387,8 @@ class Slam:
         if len(points) < 10 or not self.local_updates:
             return predicted, False
         matcher, result = self._search(points, predicted, *self._tracking_window())
-        if result.score < self.config.match_wide_score:
+        # A match_wide_score set below match_min_score must not spare a rejected match its wide search.
+        if result.score < max(self.config.match_wide_score, self.config.match_min_score):
             # A slip can throw the robot further than 3 sigma (fhw, severe: 0.44 m sideways in
             # one scan against a 0.31 m window, and the guess drawn into the map turned the rest
             # of the log 12 degrees). Within the window the best may then be a doubtful match
