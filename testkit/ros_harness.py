@@ -8,6 +8,7 @@ including nodes that roslaunch put in sessions of their own.
 """
 import json
 import os
+import random
 import signal
 import socket
 import subprocess
@@ -28,14 +29,40 @@ RUN_MARKER = "TURTLEBOT3C_TEST_RUN"
 RUN_ID = f"{os.getpid()}-{int(time.time() * 1000)}"
 
 
+FIRST_TEST_PORT = 20000  # test masters' ports lie from here to below the kernel's ephemeral range
+_ports_handed_out = set()
+_port_choice = random.SystemRandom()
+
+
+def ephemeral_port_range():
+    """The ports the kernel hands out by itself (to a bind to port 0, to an outgoing connection)."""
+    try:
+        low, high = Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split()
+        return int(low), int(high)
+    except (OSError, ValueError):
+        return 32768, 60999  # Linux's default
+
+
 def free_port():
-    """A TCP port nobody listens on now, never roscore's default 11311 (a master someone else may start)."""
+    """A TCP port nobody listens on now, below the kernel's ephemeral range and never 11311.
+
+    A port from the ephemeral range can be handed to another process (a node's XML-RPC
+    server, an outgoing connection) before the master that was meant for it binds it; that
+    master then never comes up ("Address already in use", once in CI). Below the range, only
+    another test's pick can take it, and each pick here is random and handed out once.
+    """
+    first_ephemeral, _ = ephemeral_port_range()
     while True:
+        port = _port_choice.randrange(FIRST_TEST_PORT, max(first_ephemeral, FIRST_TEST_PORT + 1000))
+        if port in _ports_handed_out or port == 11311:
+            continue
         with socket.socket() as sock:
-            sock.bind(("127.0.0.1", 0))
-            port = sock.getsockname()[1]
-        if port != 11311:
-            return port
+            try:
+                sock.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+        _ports_handed_out.add(port)
+        return port
 
 
 def sourced_environment(setup_files, base=None):
