@@ -15,6 +15,19 @@ sys.exit(0 if code == 1 else 1)
 ' "$1" >/dev/null 2>&1
 }
 
+# Nothing on this machine listens on TCP port $1: the master's bind to it would succeed.
+port_is_free() {
+  timeout 5 python3 -c '
+import socket, sys
+sock = socket.socket()
+sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as the master binds: TIME_WAIT is no obstacle
+try:
+    sock.bind(("", int(sys.argv[1])))
+except OSError:
+    sys.exit(1)
+' "$1" >/dev/null 2>&1
+}
+
 # The host of URI $1 (http://HOST:PORT/ -> HOST).
 uri_host() {
   local rest="${1#*://}"

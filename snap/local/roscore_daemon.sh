@@ -7,7 +7,8 @@
 # another machine (ros-master-host), it runs no master and says so. It follows
 # ros-master-host by itself: the configure hook never restarts it, so no
 # `snap set` takes the master from under the nodes. A master already answering
-# at the URI (one started by hand) is used, not fought: ours starts when it ends.
+# at the URI (one started by hand) is used, not fought: ours starts when it ends. A port
+# held by something else is waited for, with one line saying so.
 set -eu
 
 # shellcheck disable=SC1091 # snap/local/ros_master.sh, in the snap's usr/bin
@@ -59,6 +60,8 @@ while :; do
       say_once "the ROS master is on another machine ($uri, ros-master-host=$(snapctl get ros-master-host)): no master runs here"
     elif master_answers "$uri"; then
       say_once "a ROS master not started by this daemon already answers at $uri: using it (ours starts when it ends)"
+    elif ! port_is_free "$(uri_port "$uri")"; then
+      say_once "port $(uri_port "$uri") of this machine is taken by a program that is not a ROS master: the master starts when it is free"
     else
       roscore -p "$(uri_port "$uri")" &
       roscore_pid="$!"

@@ -5,9 +5,11 @@ their registrations (same processes, same URIs, same topics) and /map keeps its 
 Mapping and navigation started right after install and `snap set` work the first time, and
 /map flows on SLAM's cadence while mapping runs. When the master is another machine's, the
 roscore app runs none and says so, and the daemons wait for it, naming its URI, for a bounded
-time. A fresh install links root's $SNAP_USER_COMMON/map (the upstream snap's folder) to the maps.
+time. A port another program holds is waited for, with one line saying so. A fresh install
+links root's $SNAP_USER_COMMON/map (the upstream snap's folder) to the maps.
 """
 import os
+import socket
 import time
 
 import pytest
@@ -162,4 +164,29 @@ def test_with_the_master_on_another_machine_no_master_runs_here_and_the_daemons_
         assert rosmaster_pids(system) == []
         assert os.path.exists(system.root / "var/snap/turtlebot3c/common/maps")
     finally:
+        system.shutdown()
+
+
+def test_a_port_held_by_another_program_is_waited_for_with_one_line_and_no_traceback(tmp_path):
+    holder = socket.socket()
+    holder.bind(("127.0.0.1", free_port()))
+    holder.listen()
+    port = holder.getsockname()[1]
+    uri = f"http://127.0.0.1:{port}"
+    system = SnapSystem(tmp_path / "root", build_dir=ros_harness.BUILD, etc_environment={
+        "ROS_MASTER_URI": uri, "ROS_HOSTNAME": "127.0.0.1"})
+    try:
+        system.snapsim("install", REPO, "--dangerous")
+        taken = f"roscore: port {port} of this machine is taken by a program that is not a ROS master"
+        wait_until(lambda: taken in system.logs("turtlebot3c.roscore"), 60, lambda: system.logs("turtlebot3c"))
+        time.sleep(12)  # two more looks at the port
+        logs = system.logs("turtlebot3c.roscore")
+        assert logs.count(taken) == 1, logs
+        assert rosmaster_pids(system) == [] and "Traceback" not in logs and "Address already in use" not in logs
+        holder.close()
+        wait_until(lambda: f"roscore: the ROS master runs at {uri}" in system.logs("turtlebot3c.roscore"), 30,
+                   lambda: system.logs("turtlebot3c"))
+        wait_until(lambda: len(rosmaster_pids(system)) == 1, 30, lambda: system.logs("turtlebot3c"))
+    finally:
+        holder.close()
         system.shutdown()
