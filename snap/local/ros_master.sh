@@ -15,17 +15,23 @@ sys.exit(0 if code == 1 else 1)
 ' "$1" >/dev/null 2>&1
 }
 
-# Nothing on this machine listens on TCP port $1: the master's bind to it would succeed.
-port_is_free() {
+# A socket can be bound to host $1 (a name or an address; "" for all of this machine's),
+# port $2 (0 for any), as the master binds (SO_REUSEADDR: TIME_WAIT is no obstacle).
+can_bind() {
   timeout 5 python3 -c '
 import socket, sys
 sock = socket.socket()
-sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as the master binds: TIME_WAIT is no obstacle
+sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
 try:
-    sock.bind(("", int(sys.argv[1])))
+    sock.bind((socket.gethostbyname(sys.argv[1]), int(sys.argv[2])))
 except OSError:
     sys.exit(1)
-' "$1" >/dev/null 2>&1
+' "$1" "$2" >/dev/null 2>&1
+}
+
+# Nothing on this machine listens on TCP port $1: the master's bind to it would succeed.
+port_is_free() {
+  can_bind "" "$1"
 }
 
 # The host of URI $1 (http://HOST:PORT/ -> HOST).
@@ -53,11 +59,5 @@ host_is_here() {
   case "$1" in
     localhost | localhost.localdomain | 127.* | "$this_host" | "$this_host.local") return 0 ;;
   esac
-  timeout 5 python3 -c '
-import socket, sys
-try:
-    socket.socket().bind((socket.gethostbyname(sys.argv[1]), 0))
-except OSError:
-    sys.exit(1)
-' "$1" >/dev/null 2>&1
+  can_bind "$1" 0
 }
