@@ -205,6 +205,27 @@ def test_a_slip_further_than_the_tracking_window_is_found_by_a_second_wider_sear
     assert math.hypot(tracked[0] - slipped[0], tracked[1] - slipped[1]) < 0.03 and abs(tracked[2]) < 0.01
 
 
+def test_a_slip_that_reads_a_step_short_is_found_at_the_speed_the_robot_went_on():
+    """Scans at 1 Hz in a corridor, the robot going on at 1 m/s, and one step that odometry reads
+    as 0.45 m (a slip): within the window around that, the walls alone make a wrong match score
+    well; the search around where the robot's speed takes it finds the truth."""
+    boxes = [{"type": "box", "center": [x, y], "size": [0.3, 0.3]}
+             for x, y in ((1.3, 0.85), (2.9, -0.85), (3.7, 0.85), (5.6, -0.85), (6.2, 0.85), (7.9, -0.85))]
+    corridor = world_from_description({"name": "corridor", "obstacles": boxes + [
+        {"type": "wall", "from": [-2.0, -1.0], "to": [12.0, -1.0], "thickness": 0.1},
+        {"type": "wall", "from": [-2.0, 1.0], "to": [12.0, 1.0], "thickness": 0.1}]})
+    geometry = ScanGeometry(-math.pi, 2 * math.pi / 360, 360, 0.12, 3.5)
+    angles = -math.pi + np.arange(360) * 2 * math.pi / 360
+    slam = Slam()
+    odometry_x = 0.0
+    for step in range(8):
+        odometry_x += 0.45 if step == 5 else (1.0 if step else 0.0)
+        tracked = slam.add_scan(float(step), corridor.raycast(float(step), 0.0, angles, 3.5), geometry,
+                                (odometry_x, 0.0, 0.0))
+        assert tracked[0] == pytest.approx(step, abs=0.05), f"scan {step}"
+    assert slam.poor_matches == 0
+
+
 def test_along_a_featureless_corridor_odometry_that_reads_short_is_corrected_by_what_features_taught():
     """Where the scans cannot tell how far the robot went, the prediction stands: odometry that
     reads 10 % short, corrected by the scale learnt while boxes along the walls pinned each
