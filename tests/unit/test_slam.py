@@ -217,13 +217,15 @@ def test_a_slip_that_reads_a_step_short_is_found_at_the_speed_the_robot_went_on(
     geometry = ScanGeometry(-math.pi, 2 * math.pi / 360, 360, 0.12, 3.5)
     angles = -math.pi + np.arange(360) * 2 * math.pi / 360
     slam = Slam()
-    odometry_x = 0.0
+    odometry_x, tracked_x = 0.0, 0.0
     for step in range(8):
         odometry_x += 0.45 if step == 5 else (1.0 if step else 0.0)
         tracked = slam.add_scan(float(step), corridor.raycast(float(step), 0.0, angles, 3.5), geometry,
                                 (odometry_x, 0.0, 0.0))
-        assert tracked[0] == pytest.approx(step, abs=0.05), f"scan {step}"
+        assert tracked[0] - tracked_x == pytest.approx(1.0 if step else 0.0, abs=0.05), f"scan {step}"
+        tracked_x = tracked[0]
     assert slam.poor_matches == 0
+    assert slam.odometry_calibration.distance_scale == pytest.approx(1.0, abs=0.02), "a slip teaches no scale"
 
 
 def test_along_a_featureless_corridor_odometry_that_reads_short_is_corrected_by_what_features_taught():

@@ -355,11 +355,12 @@ class Slam:
         self._unmatched.add(delta, stamp)
         predicted = compose(self.pose, self.odometry_calibration.corrected(delta))
         previous, previous_matched, seconds = self.pose, self._matched, stamp - self._stamp
-        self.pose, self._matched = self._track(points, predicted, self._steady_position(seconds))
+        self.pose, self._matched, slipped = self._track(points, predicted, self._steady_position(seconds))
         self._velocity = None
         if previous_matched and self._matched:
             matched = relative(previous, self.pose)
-            self._learn_odometry(delta, matched, points)
+            if not slipped:  # a slip tells nothing of how odometry errs from step to step
+                self._learn_odometry(delta, matched, points)
             if seconds > 0:
                 self._velocity = tuple(value / seconds for value in matched)
         self.odom, self._stamp = odom_pose, stamp
@@ -398,11 +399,13 @@ class Slam:
         return compose(self.pose, (self._velocity[0] * seconds, self._velocity[1] * seconds, 0.0))[:2]
 
     def _track(self, points, predicted, steady_position=None):
-        """The scan's pose, and whether it was matched (False: the prediction kept)."""
+        """The scan's pose, whether it was matched (False: the prediction kept), and whether it was
+        found where the robot's speed took it rather than near odometry's prediction (a slip)."""
         if len(points) < 10 or not self.local_updates:
-            return predicted, False
+            return predicted, False, False
         window_xy, window_theta = self._tracking_window()
         matcher, result = self._search(points, predicted, window_xy, window_theta)
+        slipped = False
         if steady_position is not None and distance(steady_position, predicted) > window_xy:
             # A slip reads a step short (or a spinning wheel long) while the robot goes on at its
             # speed: belgioioso, severe, 1 Hz scans in a corridor, a 1.0 m step read as 0.43 m. In
@@ -414,7 +417,7 @@ class Slam:
             steady = (steady_position[0], steady_position[1], predicted[2])
             steady_matcher, steady_result = self._search(points, steady, window_xy, window_theta)
             if steady_result.score > self.STEADY_MARGIN * result.score:
-                matcher, result = steady_matcher, steady_result
+                matcher, result, slipped = steady_matcher, steady_result, True
         # A match_wide_score set below match_min_score must not spare a rejected match its wide search.
         if result.score < max(self.config.match_wide_score, self.config.match_min_score):
             # A slip can throw the robot further than 3 sigma (fhw, severe: 0.44 m sideways in
@@ -425,14 +428,14 @@ class Slam:
             wide_matcher, wide = self._search(points, predicted, self.config.match_window_max_xy,
                                               self.config.match_window_max_theta)
             if wide.score > result.score:
-                matcher, result = wide_matcher, wide
+                matcher, result, slipped = wide_matcher, wide, False
         if result.score < self.config.match_min_score:
             self.poor_matches += 1
             self._poor_streak += 1
-            return predicted, False
+            return predicted, False, False
         self._poor_streak = 0
         self._unmatched = UnmatchedMotion(self._unmatched.stamp)
-        return matcher.refine(points, result.pose).pose, True
+        return matcher.refine(points, result.pose).pose, True, slipped
 
     def _search(self, points, predicted, window_xy, window_theta):
         """The tracking map's best match for the points within the window around `predicted`."""
