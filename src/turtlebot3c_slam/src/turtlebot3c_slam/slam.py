@@ -270,6 +270,7 @@ class Keyframe:
 
 class Slam:
     POOR_STREAK_LIMIT = 2
+    STEADY_MARGIN = 1.25  # times the score around odometry's prediction (_track)
     # m around what a scan can reach in its search window that the tracking map also covers: the
     # next scans, until the next keyframe redraws the map, reuse it while they stay inside. At
     # least the branch and bound's coarsest block plus the field's spread (0.25 m), so the field
@@ -284,7 +285,6 @@ class Slam:
     ALIAS_SHIFT_STEP = 0.5
     ALIAS_MIN_REACH = 1.0
     ALIAS_FIT_SHARE = 0.9
-    STEADY_MARGIN = 1.25       # times the score around odometry's prediction (_track)
     ALIAS_ICP_ITERATIONS = 10  # enough to settle from a metre off; 3 % of freiburg-079's time
     # After a long drift the widened loop search reaches other passes of the same place: its
     # submap is the old keyframes nearest the newest one, up to a scan's spread beyond the window.
@@ -314,7 +314,7 @@ class Slam:
         self._unmatched = UnmatchedMotion()
         self._matched = True       # the last scan was matched (the first one's pose is odometry's)
         self._stamp = None         # the last scan's
-        self._velocity = None      # (x, y, yaw) per s between the last two scans, when both matched
+        self._velocity = None      # (x, y) m/s in the robot's frame between the last two scans, when both matched
         self.odometry_calibration = OdometryCalibration(
             self.config.odometry_scale_memory, self.config.odometry_error_distance, self.config.odometry_error_turn,
             self.config.odometry_error_heading)
@@ -362,7 +362,7 @@ class Slam:
             if not slipped:  # a slip tells nothing of how odometry errs from step to step
                 self._learn_odometry(delta, matched, points)
             if seconds > 0:
-                self._velocity = tuple(value / seconds for value in matched)
+                self._velocity = (matched[0] / seconds, matched[1] / seconds)
         self.odom, self._stamp = odom_pose, stamp
         last = len(self.keyframes) - 1
         moved = relative(self.graph.poses[last], self.pose)
