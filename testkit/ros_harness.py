@@ -29,7 +29,9 @@ RUN_MARKER = "TURTLEBOT3C_TEST_RUN"
 RUN_ID = f"{os.getpid()}-{int(time.time() * 1000)}"
 
 
-FIRST_TEST_PORT = 20000  # test masters' ports lie from here to below the kernel's ephemeral range
+# Test masters' ports lie from here to below the kernel's ephemeral range: above roscore's
+# default 11311, a master someone else may start.
+FIRST_TEST_PORT = 20000
 _ports_handed_out = set()
 _port_choice = random.SystemRandom()
 
@@ -53,7 +55,7 @@ def free_port():
     first_ephemeral = first_ephemeral_port()
     while True:
         port = _port_choice.randrange(FIRST_TEST_PORT, max(first_ephemeral, FIRST_TEST_PORT + 1000))
-        if port in _ports_handed_out or port == 11311:
+        if port in _ports_handed_out:
             continue
         with socket.socket() as sock:
             try:

@@ -56,14 +56,15 @@ while :; do
   if [ -z "$roscore_pid" ]; then
     uri="$(current_uri)"
     host="$(uri_host "$uri")"
+    port="$(uri_port "$uri")"
     if ! host_is_here "$host"; then
       say_once "the ROS master is on another machine ($uri, ros-master-host=$(snapctl get ros-master-host)): no master runs here"
     elif master_answers "$uri"; then
       say_once "a ROS master not started by this daemon already answers at $uri: using it (ours starts when it ends)"
-    elif ! port_is_free "$(uri_port "$uri")"; then
-      say_once "port $(uri_port "$uri") of this machine is taken by a program that is not a ROS master: the master starts when it is free"
+    elif ! port_is_free "$port"; then
+      say_once "port $port of this machine is taken by a program that is not a ROS master: the master starts when it is free"
     else
-      roscore -p "$(uri_port "$uri")" &
+      roscore -p "$port" &
       roscore_pid="$!"
       said=""
       echo "roscore: the ROS master runs at $uri (pid $roscore_pid)"

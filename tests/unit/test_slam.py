@@ -205,17 +205,26 @@ def test_a_slip_further_than_the_tracking_window_is_found_by_a_second_wider_sear
     assert math.hypot(tracked[0] - slipped[0], tracked[1] - slipped[1]) < 0.03 and abs(tracked[2]) < 0.01
 
 
+LDS_GEOMETRY = ScanGeometry(-math.pi, 2 * math.pi / 360, 360, 0.12, 3.5)  # an LDS-01's full turn
+LDS_ANGLES = -math.pi + np.arange(360) * 2 * math.pi / 360
+
+
+def corridor_world(boxes, end_x, closed_start=False):
+    """A corridor 2 m wide along x from -2 m to `end_x`, with `boxes` (world obstacles) in it."""
+    walls = [{"type": "wall", "from": [-2.0, y], "to": [end_x, y], "thickness": 0.1} for y in (-1.0, 1.0)]
+    if closed_start:
+        walls.append({"type": "wall", "from": [-2.0, -1.0], "to": [-2.0, 1.0], "thickness": 0.1})
+    return world_from_description({"name": "corridor", "obstacles": boxes + walls})
+
+
 def test_a_slip_that_reads_a_step_short_is_found_at_the_speed_the_robot_went_on():
     """Scans at 1 Hz in a corridor, the robot going on at 1 m/s, and one step that odometry reads
     as 0.45 m (a slip): within the window around that, the walls alone make a wrong match score
     well; the search around where the robot's speed takes it finds the truth."""
     boxes = [{"type": "box", "center": [x, y], "size": [0.3, 0.3]}
              for x, y in ((1.3, 0.85), (2.9, -0.85), (3.7, 0.85), (5.6, -0.85), (6.2, 0.85), (7.9, -0.85))]
-    corridor = world_from_description({"name": "corridor", "obstacles": boxes + [
-        {"type": "wall", "from": [-2.0, -1.0], "to": [12.0, -1.0], "thickness": 0.1},
-        {"type": "wall", "from": [-2.0, 1.0], "to": [12.0, 1.0], "thickness": 0.1}]})
-    geometry = ScanGeometry(-math.pi, 2 * math.pi / 360, 360, 0.12, 3.5)
-    angles = -math.pi + np.arange(360) * 2 * math.pi / 360
+    corridor = corridor_world(boxes, 12.0)
+    geometry, angles = LDS_GEOMETRY, LDS_ANGLES
     slam = Slam()
     odometry_x, tracked_x = 0.0, 0.0
     for step in range(8):
@@ -234,12 +243,8 @@ def test_along_a_featureless_corridor_odometry_that_reads_short_is_corrected_by_
     match, draws the corridor to near its true length, and the featureless part unlearns nothing."""
     boxes = [{"type": "box", "center": [0.5 + 0.6 * k, 0.85 if k % 2 == 0 else -0.85], "size": [0.3, 0.3]}
              for k in range(6)]
-    corridor = world_from_description({"name": "corridor", "obstacles": boxes + [
-        {"type": "wall", "from": [-2.0, -1.0], "to": [30.0, -1.0], "thickness": 0.1},
-        {"type": "wall", "from": [-2.0, 1.0], "to": [30.0, 1.0], "thickness": 0.1},
-        {"type": "wall", "from": [-2.0, -1.0], "to": [-2.0, 1.0], "thickness": 0.1}]})
-    geometry = ScanGeometry(-math.pi, 2 * math.pi / 360, 360, 0.12, 3.5)
-    angles = -math.pi + np.arange(360) * 2 * math.pi / 360
+    corridor = corridor_world(boxes, 30.0, closed_start=True)
+    geometry, angles = LDS_GEOMETRY, LDS_ANGLES
     slam = Slam()
     learnt = None
     for step in range(121):   # 12 m; beyond 7 m the boxes and the end wall are out of reach

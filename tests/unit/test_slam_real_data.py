@@ -115,6 +115,12 @@ def test_slam_keeps_its_heading_turning_on_the_spot_with_odometry_whose_turns_re
     assert ours.translation < 0.2 and ours.rotation < 2.5, ours
 
 
+def step_error(log, run, before, after):
+    """How far our motion from scan `before` to scan `after` is from the reference's (x, y, yaw)."""
+    return relative(relative(tuple(log.reference[before]), tuple(log.reference[after])),
+                    relative(tuple(run.trajectory[before]), tuple(run.trajectory[after])))
+
+
 def test_a_doubtful_match_is_searched_for_over_the_widest_window_too():
     """acapulco, odometry seed 3: at scan 363 a slip reads as a turn 13 degrees the wrong way,
     which the learnt turn scale makes 16. The truth lay outside the tracking window, and the
@@ -122,9 +128,7 @@ def test_a_doubtful_match_is_searched_for_over_the_widest_window_too():
     the rest of the map 20 degrees."""
     log = load_log("acapulco", 370)
     run = run_slam(log, "severe", seed=3)
-    before, after = 362, 369
-    error = relative(relative(tuple(log.reference[before]), tuple(log.reference[after])),
-                     relative(tuple(run.trajectory[before]), tuple(run.trajectory[after])))
+    error = step_error(log, run, 362, 369)
     assert abs(math.degrees(error[2])) < 2.0, error
 
 
@@ -134,9 +138,7 @@ def test_a_slip_that_reads_a_step_short_is_found_where_the_robots_speed_takes_it
     taken, it put that part of the map half a metre short. The robot had gone on at 1 m/s."""
     log = load_log("belgioioso", 100)
     run = run_slam(log, "severe", seed=1)
-    before, after = 92, 94
-    error = relative(relative(tuple(log.reference[before]), tuple(log.reference[after])),
-                     relative(tuple(run.trajectory[before]), tuple(run.trajectory[after])))
+    error = step_error(log, run, 92, 94)
     assert math.hypot(error[0], error[1]) < 0.1, error
 
 
