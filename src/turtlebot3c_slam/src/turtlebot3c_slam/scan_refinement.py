@@ -75,7 +75,7 @@ def refine(graph, clouds, settled=SETTLED):
         for j in _partners(poses, i):
             start = relative(tuple(poses[i]), tuple(poses[j]))
             matched = match(clouds[i], clouds[j].points, start, ICP_ITERATIONS, settled)
-            if matched is not None and _within_reach(start, matched[0]):
+            if matched is not None and within_reach(start, matched[0]):
                 refined.add_edge(i, j, matched[0], matched[1], robust=True)
     refined.optimize(iterations=ITERATIONS)
     return refined.poses.copy()
@@ -104,6 +104,8 @@ def chain(poses, information=FIRST_ESTIMATE_INFORMATION):
     return graph
 
 
-def _within_reach(start, matched):
+def within_reach(start, matched):
+    """Whether a match lies within MAX_SHIFT and MAX_TURN of where it started: the refinement
+    takes no match farther away."""
     shift = relative(tuple(start), tuple(matched))
     return math.hypot(shift[0], shift[1]) <= MAX_SHIFT and abs(shift[2]) <= MAX_TURN
