@@ -85,7 +85,7 @@ def reseated(scans, reference):
     while i < len(poses):
         step = relative(tuple(poses[i - 1]), tuple(poses[i]))
         scans_step = _scans_step(scans, i, step)
-        if scans_step is step:
+        if scans_step is None:
             i += 1
             continue
         moved = compose(tuple(poses[i - 1]), scans_step)
@@ -101,12 +101,12 @@ def reseated(scans, reference):
 
 def _scans_step(scans, i, step):
     """Scan i seen from scan i - 1 where the scans put it best, if that is beyond the refinement's
-    reach from `step` and fits far better; else `step` itself."""
+    reach from the reference's `step` and fits far better; else None."""
     target, points = scans.clouds[i - 1], scans.clouds[i].points
     best, best_fit = step, target.points_on_lines(points, step)
     to_beat = RESEAT_FIT_RATIO * best_fit + RESEAT_FIT_MARGIN
     if to_beat >= len(points):
-        return step  # nothing can fit that much better
+        return None  # nothing can fit that much better
     for turn in np.concatenate(([0.0], RESEAT_TURNS, -RESEAT_TURNS)):
         matched = scan_refinement.match(target, points, (step[0], step[1], step[2] + turn))
         if matched is not None:
@@ -114,7 +114,7 @@ def _scans_step(scans, i, step):
             if fit > best_fit:
                 best, best_fit = matched[0], fit
     beyond_reach = not scan_refinement.within_reach(step, best)
-    return best if beyond_reach and best_fit > to_beat else step
+    return best if beyond_reach and best_fit > to_beat else None
 
 
 def _back_on_reference(scans, before, poses, k, correction):
