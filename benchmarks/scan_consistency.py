@@ -18,8 +18,8 @@ the reference:
   scored against the reference with the relations metric, on every scan, as the mappers are.
   No mapper that follows the scans can be expected to score much below it. The refinement mends
   what lies within its reach of where it starts; where the reference errs beyond that (csail's
-  turns 11-21 degrees at scans its neighbours put elsewhere), the scans' own step between the
-  two is put in first (reseated()).
+  turns 11-21 degrees at scans its neighbours put elsewhere), the scan, with the run of scans it
+  starts, is first moved where the scan before puts it (reseated()).
 """
 import math
 

@@ -83,10 +83,9 @@ def test_a_scan_the_reference_turns_beyond_the_refinements_reach_is_put_where_it
     turned = np.degrees(relative(tuple(log.reference[4]), tuple(reseated[4]))[2])
     assert 15.0 < abs(turned) < 25.0
     for neighbour in (3, 5):
-        at_reference = scans.pairs(neighbour, 4, relative(tuple(log.reference[neighbour]), tuple(log.reference[4])))
-        reseated_pair = scans.pairs(neighbour, 4, relative(tuple(reseated[neighbour]), tuple(reseated[4])))
-        on_lines = [0 if paired is None else np.count_nonzero(np.abs(paired[2]) < 0.05)
-                    for paired in (at_reference, reseated_pair)]
+        on_lines = [scans.clouds[neighbour].points_on_lines(scans.clouds[4].points,
+                                                            relative(tuple(poses[neighbour]), tuple(poses[4])))
+                    for poses in (log.reference, reseated)]
         assert on_lines[1] > 2 * on_lines[0]
 
 
