@@ -103,18 +103,14 @@ def _scans_step(scans, i, step):
     """Scan i seen from scan i - 1 where the scans put it best, if that is beyond the refinement's
     reach from the reference's `step` and fits far better; else None."""
     target, points = scans.clouds[i - 1], scans.clouds[i].points
-    best, best_fit = step, target.points_on_lines(points, step)
-    to_beat = RESEAT_FIT_RATIO * best_fit + RESEAT_FIT_MARGIN
+    to_beat = RESEAT_FIT_RATIO * target.points_on_lines(points, step) + RESEAT_FIT_MARGIN
     if to_beat >= len(points):
         return None  # nothing can fit that much better
-    for turn in np.concatenate(([0.0], RESEAT_TURNS, -RESEAT_TURNS)):
-        matched = scan_refinement.match(target, points, (step[0], step[1], step[2] + turn))
-        if matched is not None:
-            fit = target.points_on_lines(points, matched[0])
-            if fit > best_fit:
-                best, best_fit = matched[0], fit
-    beyond_reach = not scan_refinement.within_reach(step, best)
-    return best if beyond_reach and best_fit > to_beat else None
+    turns = np.concatenate(([0.0], RESEAT_TURNS, -RESEAT_TURNS))
+    best = best_alignment(scans, i - 1, i, [(step[0], step[1], step[2] + turn) for turn in turns])
+    if best is None or scan_refinement.within_reach(step, best):
+        return None
+    return best if target.points_on_lines(points, best) > to_beat else None
 
 
 def _back_on_reference(scans, before, poses, k, correction):
