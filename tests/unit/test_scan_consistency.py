@@ -50,19 +50,11 @@ def test_a_closure_that_fits_better_than_where_icp_slides_is_not_false():
     pose that lays 130 points of 1894 on 679's lines. The reference's pose lays 115 and is 0.15 m
     away (within the tolerance); ICP from either slides along the corridor to one that lays 110,
     0.6 m away. The scans support the closure."""
-    log = load_log("infinite-corridor")
-    pair = [679, 1894]
-    log = log._replace(stamps=log.stamps[pair], ranges=log.ranges[pair], reference=log.reference[pair])
+    log = load_log("infinite-corridor").part([679, 1894])
     scans = scan_consistency.ScanSet(log)
     claimed = (0.419, 0.387, -0.122)
     assert scan_consistency.false_by_scans(scans, [(0, 1, claimed)], log.reference) == 0
     assert scan_consistency.false_by_scans(scans, [(0, 1, compose(claimed, (0.0, 0.5, 0.0)))], log.reference) == 1
-
-
-def scans_of(name, first, last):
-    log = load_log(name)
-    part = slice(first, last + 1)
-    return log._replace(stamps=log.stamps[part], ranges=log.ranges[part], reference=log.reference[part])
 
 
 def moved_scans(log, reseated):
@@ -76,7 +68,7 @@ def test_a_reference_its_scans_agree_with_is_left_as_it_is(log, scans):
 def test_a_scan_the_reference_turns_beyond_the_refinements_reach_is_put_where_its_scans_fit():
     """csail's reference turns scan 364 about 20 degrees from where scans 363 and 365 put it: no
     refinement from the reference mends that (it takes no match 0.1 rad from where it starts)."""
-    log = scans_of("csail", 360, 368)
+    log = load_log("csail").part(slice(360, 369))
     scans = scan_consistency.ScanSet(log)
     reseated = scan_consistency.reseated(scans, log.reference)
     assert moved_scans(log, reseated) == [4]
@@ -91,7 +83,7 @@ def test_a_scan_the_reference_turns_beyond_the_refinements_reach_is_put_where_it
 
 def test_scans_the_reference_misplaces_together_are_moved_together():
     """csail's reference turns scans 397-399 about 11 degrees that the scans do not, and 400 back."""
-    log = scans_of("csail", 394, 402)
+    log = load_log("csail").part(slice(394, 403))
     reseated = scan_consistency.reseated(scan_consistency.ScanSet(log), log.reference)
     assert moved_scans(log, reseated) == [3, 4, 5]
     turns = [np.degrees(relative(tuple(log.reference[i]), tuple(reseated[i]))[2]) for i in (3, 4, 5)]

@@ -41,8 +41,11 @@ class LaserLog(NamedTuple):
 
     def head(self, count):
         """The first `count` scans as a log of their own."""
-        return self._replace(stamps=self.stamps[:count], ranges=self.ranges[:count],
-                             reference=self.reference[:count])
+        return self.part(slice(count))
+
+    def part(self, scans):
+        """The scans at `scans` (a slice, or indices) as a log of their own."""
+        return self._replace(stamps=self.stamps[scans], ranges=self.ranges[scans], reference=self.reference[scans])
 
 
 def read_laser_log(path, name=None):
