@@ -4,8 +4,9 @@ The relations error of a trajectory (turtlebot3c_sim.evaluation) comes mostly fr
 scan to scan, that it takes otherwise than the reference. For each such step:
 - the gain: how much lower the relations error would be with that step as the reference takes
   it (every later pose moved with it: the metric is frame-free, so only the relations across
-  the step change);
-- the scans' own word: how many of the scan's points lie on the lines of the BEHIND scans
+  the step change); it is negative where the step's error offsets another's (one scan
+  misplaced: the step into it and the step out of it);
+- the scans' own word: how many of the scan's points lie on the lines of the BEHIND (3) scans
   before it, laid at the trajectory's relative poses and at the reference's. Where the
   reference's step lays SIDE_MARGIN times as many, the scans side with the reference and the
   gain is the mapper's to take; where the trajectory's does, the reference errs there; in
@@ -29,7 +30,7 @@ class StepGap(NamedTuple):
     scan: int                   # the step from scan - 1 to scan
     translation: float          # m, the step's difference from the reference's
     rotation: float             # degrees
-    gain: float                 # m of relations error the reference's step would take off
+    gain: float                 # m of relations error the reference's step would take off (see the doc)
     fit_trajectory: int         # points on the BEHIND scans' lines at the trajectory's step
     fit_reference: int          # ...and at the reference's
     sides_with: str             # "trajectory", "reference" or "neither"
