@@ -66,9 +66,9 @@ def fit_behind(scans, trajectory, i):
 
 
 def sides_with(fit_trajectory, fit_reference):
-    if fit_trajectory >= SIDE_MARGIN * fit_reference:
+    if fit_trajectory > SIDE_MARGIN * fit_reference:
         return "trajectory"
-    if fit_reference >= SIDE_MARGIN * fit_trajectory:
+    if fit_reference > SIDE_MARGIN * fit_trajectory:
         return "reference"
     return "neither"
 
@@ -79,7 +79,7 @@ def largest_gaps(scans, trajectory, reference, travel):
     candidates = set(np.argsort(-translation)[:CANDIDATES]) | set(np.argsort(-rotation)[:CANDIDATES])
     whole = relative_pose_errors(trajectory, reference, travel).translation
     gaps = []
-    for step in candidates:
+    for step in sorted(candidates):
         i = int(step) + 1
         mended = with_reference_steps(trajectory, reference, [i])
         fits = fit_behind(scans, trajectory, i), fit_behind(scans, reference, i)

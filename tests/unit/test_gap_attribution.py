@@ -46,3 +46,9 @@ def test_where_the_reference_misplaces_a_scan_the_scans_side_with_the_trajectory
     gaps = {gap.scan: gap for gap in gap_attribution.largest_gaps(scans, by_scans, log.reference, log.travel())}
     assert gaps[8].sides_with == "trajectory"
     assert gaps[8].fit_trajectory > 2 * gaps[8].fit_reference
+
+
+def test_a_scan_that_overlaps_none_before_it_leaves_the_scans_no_word():
+    assert gap_attribution.sides_with(0, 0) == "neither"
+    assert gap_attribution.sides_with(100, 105) == "neither"
+    assert gap_attribution.sides_with(0, 50) == "reference"
