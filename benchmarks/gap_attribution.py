@@ -19,7 +19,7 @@ from typing import NamedTuple
 import numpy as np
 
 from turtlebot3c_common.se2 import compose, inverse, relative
-from turtlebot3c_sim.evaluation import relative_pose_errors
+from turtlebot3c_sim.evaluation import relation_errors, relative_pose_errors
 
 BEHIND = 3          # scans before a step's scan that it is laid on
 SIDE_MARGIN = 1.1   # times as many points on lines: the scans side with one of the two
@@ -38,14 +38,17 @@ class StepGap(NamedTuple):
 
 def step_differences(trajectory, reference):
     """(N - 1,) m and (N - 1,) rad: how far each step, scan to scan, lies from the reference's."""
-    translation, rotation = [], []
-    for i in range(1, len(reference)):
-        ours = relative(tuple(trajectory[i - 1]), tuple(trajectory[i]))
-        theirs = relative(tuple(reference[i - 1]), tuple(reference[i]))
-        off = relative(theirs, ours)
-        translation.append(math.hypot(off[0], off[1]))
-        rotation.append(abs(off[2]))
-    return np.array(translation), np.array(rotation)
+    first = np.arange(len(reference) - 1)
+    return relation_errors(np.asarray(trajectory, dtype=np.float64)[:, :3],
+                           np.asarray(reference, dtype=np.float64)[:, :3], first, first + 1)
+
+
+def moved_from(poses, i, pose):
+    """`poses` (N x 3) with pose i put at `pose` and every later one moved with it."""
+    moved = np.array(poses, dtype=np.float64)[:, :3]
+    correction = compose(tuple(pose), inverse(tuple(moved[i])))
+    moved[i:] = [compose(correction, tuple(later)) for later in moved[i:]]
+    return moved
 
 
 def with_reference_steps(trajectory, reference, scans):
@@ -53,8 +56,7 @@ def with_reference_steps(trajectory, reference, scans):
     mended = np.array(trajectory, dtype=np.float64)[:, :3]
     for i in sorted(scans):
         step = relative(tuple(reference[i - 1]), tuple(reference[i]))
-        correction = compose(compose(tuple(mended[i - 1]), step), inverse(tuple(mended[i])))
-        mended[i:] = [compose(correction, tuple(pose)) for pose in mended[i:]]
+        mended = moved_from(mended, i, compose(tuple(mended[i - 1]), step))
     return mended
 
 

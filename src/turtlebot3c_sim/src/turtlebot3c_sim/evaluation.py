@@ -211,11 +211,13 @@ def relative_pose_errors(estimated, reference, travel, min_travel=1.0, max_trave
     first, last = np.concatenate(first).astype(int), np.concatenate(last).astype(int)
     if len(first) == 0:
         return RelativeError(math.nan, math.nan, 0)
-    error_xy, error_theta = _relation_errors(estimated, reference, first, last)
+    error_xy, error_theta = relation_errors(estimated, reference, first, last)
     return RelativeError(float(error_xy.mean()), float(error_theta.mean()), len(first))
 
 
-def _relation_errors(estimated, reference, first, last):
+def relation_errors(estimated, reference, first, last):
+    """(m, rad) per pair: how far the motion from pose first[k] to pose last[k] of `estimated`
+    (N x 3 arrays) lies from the reference's."""
     def motion(poses):
         dx, dy = poses[last, 0] - poses[first, 0], poses[last, 1] - poses[first, 1]
         cos, sin = np.cos(poses[first, 2]), np.sin(poses[first, 2])
