@@ -18,7 +18,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from turtlebot3c_common.se2 import compose, inverse, relative
+from turtlebot3c_common.se2 import compose, moved_from, relative
 from turtlebot3c_sim.evaluation import relation_errors, relative_pose_errors
 
 BEHIND = 3          # scans before a step's scan that it is laid on
@@ -41,14 +41,6 @@ def step_differences(trajectory, reference):
     first = np.arange(len(reference) - 1)
     return relation_errors(np.asarray(trajectory, dtype=np.float64)[:, :3],
                            np.asarray(reference, dtype=np.float64)[:, :3], first, first + 1)
-
-
-def moved_from(poses, i, pose):
-    """`poses` (N x 3) with pose i put at `pose` and every later one moved with it."""
-    moved = np.array(poses, dtype=np.float64)[:, :3]
-    correction = compose(tuple(pose), inverse(tuple(moved[i])))
-    moved[i:] = [compose(correction, tuple(later)) for later in moved[i:]]
-    return moved
 
 
 def with_reference_steps(trajectory, reference, scans):

@@ -59,7 +59,11 @@ class Score(NamedTuple):
 
 def run_slam(log, severity, seed, config=None):
     """Our SLAM over every scan of `log` with odometry of `severity` (a name in SEVERITIES)."""
-    odometry = noisy_odometry(log.reference, SEVERITIES[severity], seed)
+    return run_slam_with(log, noisy_odometry(log.reference, SEVERITIES[severity], seed), config)
+
+
+def run_slam_with(log, odometry, config=None):
+    """Our SLAM over every scan of `log`, given `odometry` (N, 3), one pose per scan."""
     slam = Slam(config or shipped_slam_config())
     geometry = geometry_of(log)
     keyframe_scan = {}

@@ -5,7 +5,7 @@ import pytest
 
 from benchmarks import gap_attribution, scan_consistency
 from testkit.real_data import load_log
-from turtlebot3c_common.se2 import compose
+from turtlebot3c_common.se2 import compose, moved_from
 from turtlebot3c_sim.evaluation import relative_pose_errors
 
 
@@ -22,7 +22,7 @@ def test_every_step_taken_as_the_reference_takes_it_is_the_reference_in_another_
 
 
 def test_a_step_the_scans_pin_elsewhere_is_the_mappers_to_take(log):
-    wrong = gap_attribution.moved_from(log.reference, 20, compose(tuple(log.reference[20]), (0.0, 0.2, 0.05)))
+    wrong = moved_from(log.reference, 20, compose(tuple(log.reference[20]), (0.0, 0.2, 0.05)))
     gaps = gap_attribution.largest_gaps(scan_consistency.ScanSet(log), wrong, log.reference, log.travel())
     largest = gaps[0]
     assert largest.scan == 20 and largest.sides_with == "reference"

@@ -33,6 +33,14 @@ def relative(a, b):
     return compose(inverse(a), b)
 
 
+def moved_from(poses, i, pose):
+    """Poses (N, 3) with pose i put at `pose` and every later one moved with it (a path bent at i)."""
+    moved = np.array(poses, dtype=np.float64)[:, :3]
+    correction = compose(tuple(pose), inverse(tuple(moved[i])))
+    moved[i:] = [compose(correction, tuple(later)) for later in moved[i:]]
+    return moved
+
+
 def transform_points(pose, points):
     """Points (N, 2) given in the frame at `pose`, expressed in that pose's parent frame."""
     x, y, yaw = pose

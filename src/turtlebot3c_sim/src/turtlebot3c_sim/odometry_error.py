@@ -12,7 +12,9 @@ turn (as wheel encoders see a short arc), and corrupted with, per severity:
 - *random walk*: zero-mean noise growing with the square root of the distance and angle
   travelled (`walk_xy` m and `walk_theta` rad per sqrt metre / sqrt radian);
 - *slips*: with probability `slip_per_metre` per metre, a wheel slips: the distance of that
-  step reads up to `slip_loss` short and the heading jumps by up to `slip_turn` rad.
+  step reads up to `slip_loss` long or short, as likely either way (a wheel spinning on a
+  smooth floor or against an obstacle reads long; a robot pushed, or skidding on after
+  braking, reads short), and the heading jumps by up to `slip_turn` rad.
 Seeded: the same severity and seed give the same odometry.
 """
 import math
@@ -20,7 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from turtlebot3c_common.se2 import compose, relative, wrap_angle
+from turtlebot3c_common.se2 import compose, moved_from, relative, wrap_angle
 
 
 class OdometryError(NamedTuple):
@@ -30,7 +32,7 @@ class OdometryError(NamedTuple):
     walk_xy: float          # m per sqrt(m)
     walk_theta: float       # rad per sqrt(m + rad)
     slip_per_metre: float   # probability per m
-    slip_loss: float        # fraction of a step's distance, at most
+    slip_loss: float        # fraction of a step's distance, either way, at most
     slip_turn: float        # rad, at most
 
 
@@ -65,8 +67,17 @@ def noisy_odometry(reference, error, seed):
         length += random.normal(0.0, error.walk_xy * math.sqrt(abs(length)))
         second_turn += random.normal(0.0, error.walk_theta * math.sqrt(abs(length) + turned))
         if random.uniform() < error.slip_per_metre * abs(length):
-            length *= 1.0 - random.uniform(0.0, error.slip_loss)
+            length *= 1.0 - random.uniform(-error.slip_loss, error.slip_loss)
             second_turn += random.uniform(-error.slip_turn, error.slip_turn)
         moved = (length * math.cos(first_turn), length * math.sin(first_turn), first_turn + second_turn)
         odometry.append(compose(odometry[-1], moved))
     return np.array(odometry)
+
+
+def with_slip(odometry, scan, length):
+    """`odometry` with the step into `scan` read as `length` m (its direction and turn kept),
+    every later pose moved with it: one slip, put where a test needs it whatever the seed drew."""
+    before, after = tuple(odometry[scan - 1]), tuple(odometry[scan])
+    step = relative(before, after)
+    stretch = length / math.hypot(step[0], step[1])
+    return moved_from(odometry, scan, compose(before, (step[0] * stretch, step[1] * stretch, step[2])))
