@@ -20,7 +20,15 @@ from turtlebot3c_slam.line_icp import LineCloud, align
 from turtlebot3c_slam.occupancy_grid import LogOddsGrid, trace_scan
 from turtlebot3c_slam.pose_graph import PoseGraph
 from turtlebot3c_slam.scan_matcher import GridMatcher, sparse_likelihood_field
-from turtlebot3c_slam.slam import Keyframe, LoopClosure, RedrawBudget, Slam, SlamConfig, check_slam_method
+from turtlebot3c_slam.slam import (
+    Keyframe,
+    LoopClosure,
+    RedrawBudget,
+    Slam,
+    SlamConfig,
+    check_slam_method,
+    positions_towards,
+)
 from turtlebot3c_slam.slam_messages import mount_from_transform
 from turtlebot3c_slam.slam_scan import ScanGeometry, ScanRays, scan_rays
 
@@ -203,6 +211,14 @@ def test_a_slip_further_than_the_tracking_window_is_found_by_a_second_wider_sear
     tracked = slam.add_scan(3.0, room_ranges(slipped, angles), geometry, (0.3, 0.0, 0.0))
     assert slam.poor_matches == 0
     assert math.hypot(tracked[0] - slipped[0], tracked[1] - slipped[1]) < 0.03 and abs(tracked[2]) < 0.01
+
+
+def test_windows_from_the_speeds_pose_to_odometrys_cover_the_way_between():
+    positions = positions_towards((0.0, 0.0), (2.5, 0.0), 1.0)
+    assert positions[0] == (0.0, 0.0)
+    way = [x for x, _ in positions] + [2.5]
+    assert all(0.0 < after - before <= 1.0 for before, after in zip(way, way[1:]))
+    assert positions_towards((0.0, 0.0), (0.6, 0.0), 1.0) == [(0.0, 0.0)]
 
 
 LDS_GEOMETRY = ScanGeometry(-math.pi, 2 * math.pi / 360, 360, 0.12, 3.5)  # an LDS-01's full turn
