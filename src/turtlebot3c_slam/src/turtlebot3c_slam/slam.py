@@ -428,10 +428,10 @@ class Slam:
             # kept odometry's guess, 1.6 m off). Windows from the speed's pose towards odometry's
             # cover the whole way, each taken only if clearly better than the best so far.
             for position in positions_towards(steady_position, predicted, 2.0 * window_xy):
-                steady = (position[0], position[1], predicted[2])
-                steady_matcher, steady_result = self._search(points, steady, window_xy, window_theta)
-                if steady_result.score > self.STEADY_MARGIN * result.score:
-                    matcher, result, slipped = steady_matcher, steady_result, True
+                centre = (position[0], position[1], predicted[2])
+                slip_matcher, slip_result = self._search(points, centre, window_xy, window_theta)
+                if slip_result.score > self.STEADY_MARGIN * result.score:
+                    matcher, result, slipped = slip_matcher, slip_result, True
         # A match_wide_score set below match_min_score must not spare a rejected match its wide search.
         if result.score < max(self.config.match_wide_score, self.config.match_min_score):
             # A slip can throw the robot further than 3 sigma (fhw, severe: 0.44 m sideways in
