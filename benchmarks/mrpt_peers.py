@@ -1,15 +1,19 @@
-"""MRPT's rbpf-slam and icp-slam (Debian's mrpt-apps) on the same real scans and odometry as ours.
+"""MRPT's rbpf-slam, icp-slam and pf-localization (Debian's mrpt-apps) on the same real scans and
+odometry as ours.
 
-For benchmarks/bench_slam_real: the peers get a log's scans with the odometry our SLAM gets,
-and give back one pose per scan, their CPU time and peak memory, so every mapper is scored the
-same way in the same run (testkit.real_data.score).
+For benchmarks/bench_slam_real: the peers get a log's scans with the odometry our SLAM and AMCL
+get, and give back one pose per scan, their CPU time and peak memory, so every mapper is scored
+the same way in the same run (testkit.real_data.score), and every localiser too
+(testkit.real_data.judge_localization).
 
 How:
 - Debian's carmen2rawlog (2.5.8) is not used: it writes wrong timestamps and a rawlog of bare
-  observations that rbpf-slam cannot read. Our own converter (mrpt/scans_to_rawlog.cpp, compiled
+  observations that rbpf-slam cannot read. Our own converter (mrpt/scans_to_mrpt.cpp, compiled
   on first use into build/mrpt-converter/ against libmrpt-obs-dev) writes the "actions and
   observations" rawlog: per scan a CActionRobotMovement2D with the odometry increment and a
-  CSensoryFrame with the CObservation2DRangeScan.
+  CSensoryFrame with the CObservation2DRangeScan. For pf-localization it also writes the map, as a
+  simplemap: the scans the map is drawn from, at their reference poses; pf-localization builds its
+  own grid from it (mrpt/pf-localization.ini), as our AMCL's map is drawn from the same scans.
 - The motion model of each increment carries GMapping's odometry noise (srr 0.1, srt 0.2,
   str 0.1, stt 0.2) in MRPT's Gaussian model (std linear in distance and turn, as Thrun's): MRPT
   recomputes the distribution when it reads a rawlog, and its Thrun model is a set of random
@@ -19,27 +23,32 @@ How:
 - No-return readings (+inf) are stored as invalid beams; the fan of beams is centred with the
   sensor's yaw, as MRPT spreads the beams evenly over the aperture (180 beams 1 degree apart from
   -90 degrees are a 179 degree aperture turned by -0.5 degree).
-- The settings are in mrpt/rbpf-slam.ini and mrpt/icp-slam.ini, one comment per choice; a run
-  only sets its output folder and (rbpf-slam) the random seed, RANDOM_SEED, which rbpf-slam
-  2.5.8 reads and gives to MRPT's random generator.
+- The settings are in mrpt/rbpf-slam.ini, mrpt/icp-slam.ini and mrpt/pf-localization.ini, one
+  comment per choice; a run only sets its output folder, (rbpf-slam) the random seed,
+  RANDOM_SEED, which rbpf-slam 2.5.8 reads and gives to MRPT's random generator, and
+  (pf-localization) its map, rawlog and starting box.
 - Trajectories: icp-slam writes its pose after every scan (log_estimated_path.txt), which is
-  final (no loop closure). rbpf-slam's answer is the path of the most likely particle at the end
-  (most_likely_path.txt, one pose per filter step after the starting pose); a scan at which the
-  filter did not run (no motion since the last) gets that path's last pose moved by odometry,
-  as rbpf-slam itself predicts it.
+  final (no loop closure); pf-localization logs its estimate (the particles' mean) at every
+  scan, the first being that of the starting cloud. rbpf-slam's answer is the path of the most
+  likely particle at the end (most_likely_path.txt, one pose per filter step after the starting
+  pose); a scan at which the filter did not run (no motion since the last) gets that path's last
+  pose moved by odometry, as rbpf-slam itself predicts it.
 
 - Runs are kept in build/mrpt-peer-runs/, keyed by everything that decides them (the scans, the
   odometry, the seed, the .ini files, this module, the converter's source and the MRPT
   programs): a peer is deterministic given those, and rbpf-slam takes hours over all the logs,
   so the benchmark reruns only what changed. PeerRun.cached says when a run was reused; a run
   that failed by itself (PeerFailed: rbpf-slam out of its memory) is kept as its message, one
-  stopped from outside (the timeout, a kill) is not.
+  stopped from outside (the timeout, a kill) is not. pf-localization seeds its random generator
+  from the clock, so its runs are not kept: the benchmark runs it several times and gives the
+  spread.
 
 Runnable alone for a quick check: .venv/bin/python3 benchmarks/mrpt_peers.py [log ...]
 """
 import hashlib
 import math
 import os
+import re
 import resource
 import shutil
 import signal
@@ -56,10 +65,13 @@ from turtlebot3c_common.se2 import compose, relative
 
 REPO = Path(__file__).resolve().parent.parent
 HERE = Path(__file__).resolve().parent / "mrpt"
-CONVERTER_SOURCE = HERE / "scans_to_rawlog.cpp"
-CONVERTER = REPO / "build" / "mrpt-converter" / "scans_to_rawlog"
+CONVERTER_SOURCE = HERE / "scans_to_mrpt.cpp"
+CONVERTER = REPO / "build" / "mrpt-converter" / "scans_to_mrpt"
 RBPF_CONFIG = HERE / "rbpf-slam.ini"
 ICP_CONFIG = HERE / "icp-slam.ini"
+PF_CONFIG = HERE / "pf-localization.ini"
+SLAM_PEERS = ("rbpf-slam", "icp-slam")
+LOCALIZATION_PEERS = ("pf-localization",)
 RUNS = REPO / "build" / "mrpt-peer-runs"
 MRPT_INCLUDE = Path("/usr/include/mrpt")
 MRPT_LIBRARIES = ("mrpt-obs", "mrpt-poses", "mrpt-serialization", "mrpt-io", "mrpt-core",
@@ -87,17 +99,18 @@ class PeerFailed(RuntimeError):
 
 
 class PeerRun(NamedTuple):
-    name: str                 # "rbpf-slam" or "icp-slam"
+    name: str                 # "rbpf-slam", "icp-slam" or "pf-localization"
     trajectory: np.ndarray    # (N, 3) x, y, theta per scan of the log, in the peer's map frame
+                              # (pf-localization's: the reference's, which its map is drawn in)
     seconds: float            # CPU seconds (user + sys) of the peer's process
     peak_rss_mb: float        # the peer process's peak resident memory
     wall_seconds: float
     cached: bool = False      # reused from an earlier run with the very same inputs
 
 
-def available() -> Optional[str]:
-    """None when both peers can run here, else why not (one line, for the benchmark to print)."""
-    for program in ("rbpf-slam", "icp-slam"):
+def available(programs=SLAM_PEERS) -> Optional[str]:
+    """None when the peers `programs` can run here, else why not (one line, for the benchmark to print)."""
+    for program in programs:
         if shutil.which(program) is None:
             return f"{program} not found (apt-get install mrpt-apps)"
     try:
@@ -131,25 +144,37 @@ def converter() -> Path:
     return CONVERTER
 
 
-def write_rawlog(log, odometry, path):
+def write_rawlog(log, odometry, path, max_range=MAX_RANGE):
     """Convert `log`'s scans with `odometry` (N, 3) into an MRPT rawlog at `path`."""
     odometry = np.asarray(odometry, dtype=np.float64)
+    steps = [relative(odometry[index - 1], odometry[index]) if index else (0.0, 0.0, 0.0)
+             for index in range(len(odometry))]
+    _convert("rawlog", log, range(len(log.stamps)), steps, path, max_range)
+
+
+def write_simplemap(log, poses, scans, path, max_range=MAX_RANGE):
+    """The scans of `log` that `scans` (a mask) marks, at their `poses` (N, 3), as an MRPT simplemap at `path`."""
+    chosen = np.flatnonzero(scans)
+    _convert("simplemap", log, chosen, np.asarray(poses, dtype=np.float64)[chosen], path, max_range)
+
+
+def _convert(kind, log, indices, poses, path, max_range):
+    """The converter's input for the scans `indices` of `log`, each with its row of `poses`, then the converter."""
     beams = log.beams
     aperture = log.angle_increment * (beams - 1)
     sensor_yaw = log.angle_min + aperture / 2.0
     text = Path(str(path) + ".txt")
     with open(text, "w") as stream:
-        stream.write(f"{beams} {aperture!r} {sensor_yaw!r} {MAX_RANGE} {RANGE_STD} "
+        stream.write(f"{beams} {aperture!r} {sensor_yaw!r} {max_range} {RANGE_STD} "
                      + " ".join(str(value) for value in ODOMETRY_NOISE) + "\n")
-        for index, (stamp, ranges) in enumerate(zip(log.stamps, log.ranges)):
-            step = relative(odometry[index - 1], odometry[index]) if index else (0.0, 0.0, 0.0)
-            readings = np.where(np.isfinite(ranges), ranges, -1.0)
-            stream.write(f"{1e9 + float(stamp):.6f} {step[0]!r} {step[1]!r} {step[2]!r} ")
+        for index, pose in zip(indices, poses):
+            readings = np.where(np.isfinite(log.ranges[index]), log.ranges[index], -1.0)
+            stream.write(f"{1e9 + float(log.stamps[index]):.6f} {pose[0]!r} {pose[1]!r} {pose[2]!r} ")
             stream.write(" ".join(f"{value:.4f}" for value in readings))
             stream.write("\n")
-    done = subprocess.run([str(converter()), str(text), str(path)], capture_output=True, text=True)
-    if done.returncode != 0 or done.stdout.strip() != str(len(log.stamps)):
-        raise RuntimeError(f"rawlog conversion failed: {done.stderr.strip() or done.stdout.strip()}")
+    done = subprocess.run([str(converter()), kind, str(text), str(path)], capture_output=True, text=True)
+    if done.returncode != 0 or done.stdout.strip() != str(len(poses)):
+        raise RuntimeError(f"{kind} conversion failed: {done.stderr.strip() or done.stdout.strip()}")
     text.unlink()
 
 
@@ -223,6 +248,43 @@ def _run_icp_slam(log, odometry, workdir):
     return PeerRun("icp-slam", rows[:, 1:4].copy(), seconds, peak, wall)
 
 
+def run_pf_localization(log, odometry, map_scans, start, spread, workdir, max_range) -> PeerRun:
+    """pf-localization over every scan of `log` with `odometry` (N, 3), in a map of the scans
+    `map_scans` (a mask) at their reference poses, its particles first spread uniformly over the
+    free cells within `spread` (m, m, rad) of `start` (x, y, theta). Scans and map keep readings up
+    to `max_range` m. Not kept: pf-localization seeds from the clock, so every run differs."""
+    workdir = Path(workdir)
+    workdir.mkdir(parents=True, exist_ok=True)
+    rawlog, simplemap = workdir / "scans.rawlog", workdir / "map.simplemap"
+    write_rawlog(log, odometry, rawlog, max_range)
+    write_simplemap(log, log.reference, map_scans, simplemap, max_range)
+    (x, y, theta), (half_x, half_y, half_theta) = start, spread
+    config = _config(PF_CONFIG, workdir / "pf-localization.ini", {
+        "map_file": str(simplemap), "rawlog_file": str(rawlog), "logOutput_dir": str(workdir / "pf-out"),
+        "init_PDF_min_x": x - half_x, "init_PDF_max_x": x + half_x,
+        "init_PDF_min_y": y - half_y, "init_PDF_max_y": y + half_y,
+        "init_PDF_min_yaw_deg": math.degrees(theta - half_theta),
+        "init_PDF_max_yaw_deg": math.degrees(theta + half_theta)}, section_name="[LocalizationExperiment]")
+    output = workdir / "pf-localization.out"
+    seconds, peak, wall = _run(["pf-localization", str(config)], output)
+    estimates = pf_localization_estimates(output.read_text(errors="replace"))
+    if len(estimates) != len(log.stamps):
+        raise RuntimeError(f"pf-localization: {len(estimates)} estimates for {len(log.stamps)} scans")
+    return PeerRun("pf-localization", estimates, seconds, peak, wall)
+
+
+# pf-localization's log line with its estimate after each scan: "PDF estimation: (x,y,theta_deg), ..."
+PF_ESTIMATE = re.compile(r"PDF estimation: \(([-+\d.eE]+),([-+\d.eE]+),([-+\d.eE]+)deg\)")
+
+
+def pf_localization_estimates(output):
+    """(N, 3) x, y, theta (rad) per scan from pf-localization's log."""
+    rows = [[float(value) for value in match.groups()] for match in PF_ESTIMATE.finditer(output)]
+    estimates = np.array(rows, dtype=float).reshape(-1, 3)
+    estimates[:, 2] = np.radians(estimates[:, 2])
+    return estimates
+
+
 def _run(command, output):
     """Run a peer to completion: (CPU s of user + sys, peak RSS MB, wall s) of its process."""
     started = time.monotonic()
@@ -258,21 +320,21 @@ def _limit_memory():
     resource.setrlimit(resource.RLIMIT_AS, (PEER_MEMORY, PEER_MEMORY))
 
 
-def _config(template, path, values):
-    """A copy of an .ini file with some keys of [MappingApplication] set to `values`."""
+def _config(template, path, values, section_name="[MappingApplication]"):
+    """A copy of an .ini file with some keys of one section set to `values`."""
     lines, section, seen = [], None, set()
     for line in template.read_text().splitlines():
         stripped = line.strip()
         if stripped.startswith("["):
             section = stripped
         key = stripped.split("=", 1)[0].strip() if "=" in stripped and not stripped.startswith("#") else None
-        if section == "[MappingApplication]" and key in values:
+        if section == section_name and key in values:
             line = f"{key} = {values[key]}"
             seen.add(key)
         lines.append(line)
     missing = set(values) - seen
     if missing:
-        raise ValueError(f"{template}: no {', '.join(sorted(missing))} in [MappingApplication]")
+        raise ValueError(f"{template}: no {', '.join(sorted(missing))} in {section_name}")
     path.write_text("\n".join(lines) + "\n")
     return path
 

@@ -204,22 +204,26 @@ def amcl_params(**overrides):
     return AmclParams()._replace(**dict(AMCL_PARAMS, **overrides))
 
 
+def amcl_start(log, offset=AMCL_START_OFFSET):
+    """The starting guess a localiser is given: offset[0] m (diagonally) and offset[1] rad off the
+    first reference pose."""
+    x, y, yaw = log.reference[0]
+    shift = offset[0] / math.sqrt(2.0)
+    return (x + shift, y + shift, yaw + offset[1])
+
+
 def run_amcl(log, severity, seed=1, params=None, occupancy_map=None, offset=AMCL_START_OFFSET, judged=None):
     """AMCL over every scan of `log` with odometry of `severity` (a name in SEVERITIES), started
     offset[0] m (diagonally) and offset[1] rad off the first reference pose; the map is the log's
     reference_map unless given. The filter's seed is `seed` too. Convergence is judged on every
     scan; the figures after it count the scans `judged` marks (None: all)."""
-    from turtlebot3c_common.se2 import wrap_angle
     from turtlebot3c_navigation.navigation_stack import Localizer, make_filter, map_layers
 
     occupancy_map = occupancy_map if occupancy_map is not None else reference_map(log)
     layers = map_layers(occupancy_map.data, occupancy_map.resolution, occupancy_map.origin)
     localizer = Localizer(make_filter(layers, params or amcl_params(), seed=seed))
     odometry = noisy_odometry(log.reference, SEVERITIES[severity], seed)
-    x, y, yaw = log.reference[0]
-    shift = offset[0] / math.sqrt(2.0)
-    localizer.set_pose((x + shift, y + shift, yaw + offset[1]), tuple(odometry[0]),
-                       np.diag(np.square(AMCL_INITIAL_STD)))
+    localizer.set_pose(amcl_start(log, offset), tuple(odometry[0]), np.diag(np.square(AMCL_INITIAL_STD)))
     angles = log.angle_min + np.arange(log.beams) * log.angle_increment
     poses, updates = np.zeros((len(log.stamps), 3)), 0
     started = time.process_time()
@@ -228,12 +232,31 @@ def run_amcl(log, severity, seed=1, params=None, occupancy_map=None, offset=AMCL
         updates += localizer.update(odom, ranges, angles, 0.0, (0.0, 0.0, 0.0))
         poses[index] = localizer.pose(odom)
     seconds = time.process_time() - started
+    return AmclRun(poses, odometry, *judge_localization(log, poses, judged),
+                   len(poses) / seconds if seconds > 0 else math.inf, updates, localizer.filter.relocalizations)
+
+
+class Localization(NamedTuple):
+    translation_errors: np.ndarray  # (N,) m against the reference
+    rotation_errors: np.ndarray     # (N,) deg
+    converged_at: Optional[int]     # see converged_scan
+    translation: float              # m, mean from converged_at on over the judged scans
+    rotation: float                 # deg
+    held: float                     # share of those scans within AMCL_BOUND
+
+
+def judge_localization(log, poses, judged=None):
+    """A localiser's poses (N, 3), one per scan of `log`, against the reference: errors per scan,
+    convergence, and the figures after it over the scans `judged` marks (None: all). Our AMCL
+    and its peers are judged by this one function."""
+    from turtlebot3c_common.se2 import wrap_angle
+
+    poses = np.asarray(poses, dtype=float)
     translation_errors = np.hypot(*(poses[:, :2] - log.reference[:, :2]).T)
     rotation_errors = np.degrees(np.abs(wrap_angle(poses[:, 2] - log.reference[:, 2])))
     start = converged_scan(translation_errors, rotation_errors, log.travel())
-    translation, rotation, held = after_convergence(translation_errors, rotation_errors, start, judged)
-    return AmclRun(poses, odometry, translation_errors, rotation_errors, start, translation, rotation, held,
-                   len(poses) / seconds if seconds > 0 else math.inf, updates, localizer.filter.relocalizations)
+    return Localization(translation_errors, rotation_errors, start,
+                        *after_convergence(translation_errors, rotation_errors, start, judged))
 
 
 def after_convergence(translation_errors, rotation_errors, start, judged=None):
