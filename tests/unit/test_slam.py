@@ -17,7 +17,7 @@ from turtlebot3c_sim.evaluation import (
 from turtlebot3c_sim.simulation import NoiseConfig, Simulation
 from turtlebot3c_sim.world import load_world, world_from_description
 from turtlebot3c_slam.line_icp import LineCloud, align
-from turtlebot3c_slam.occupancy_grid import LogOddsGrid, trace_scan
+from turtlebot3c_slam.occupancy_grid import CellUpdate, LogOddsGrid, trace_scan
 from turtlebot3c_slam.pose_graph import PoseGraph
 from turtlebot3c_slam.scan_matcher import GridMatcher, sparse_likelihood_field
 from turtlebot3c_slam.slam import (
@@ -125,6 +125,22 @@ def test_scan_marks_hit_cells_occupied_and_cells_before_them_free():
     assert cell_state(occupancy, 0.5, 0.2) == 0
     assert cell_state(occupancy, 1.2, 0.0) == -1  # behind the wall: never seen
     assert cell_state(occupancy, -0.5, 0.0) == -1  # outside the field of view
+
+
+def test_a_wall_hit_by_some_rays_and_passed_by_others_stays_occupied_until_misses_outweigh_its_hits():
+    """A wall seen at a grazing angle or from afar is hit by some of the rays that reach it and
+    passed by others. AMCL sees occupied cells only: a map that called such a wall unknown lost
+    it (aces, a map of the even scans: a corridor's walls, AMCL 1.9 m off). People walking by
+    still clear: a cell passed by enough rays goes free."""
+    grid = LogOddsGrid(0.05)
+    grid.add_scan(wall_scan(), (0.0, 0.0, 0.0))
+    wall_cell = np.array([[20, 0]])  # x 1.00-1.05, y 0.00-0.05: hit by the scan
+    passed = CellUpdate(free=wall_cell, hits=np.zeros((0, 2), dtype=np.int64))
+    for _ in range(2):  # two misses weigh less than one hit (0.4 each against 0.85)
+        grid.apply(passed)
+        assert cell_state(grid.to_occupancy_map(), 1.01, 0.01) == 100
+    grid.apply(passed)
+    assert cell_state(grid.to_occupancy_map(), 1.01, 0.01) == 0
 
 
 def test_a_ray_with_no_return_never_clears_a_wall_nor_what_lies_behind_it():
