@@ -136,10 +136,10 @@ def reference_map(log, resolution=AMCL_MAP_RESOLUTION, max_range=AMCL_MAP_RANGE)
     Log-odds per cell as the SLAM's grid (a hit adds AMCL_HIT_LOG_ODDS, a ray through it
     AMCL_FREE_LOG_ODDS, each scan counting a cell once), so people walking by are cleared by
     later rays; readings beyond `max_range` and no-returns are free rays up to `max_range`.
-    Occupied and free as the SLAM's published map (LogOddsGrid.to_occupancy_map): occupied above
-    0, free at or below the log-odds of 0.45.
+    Occupied, free and unknown as in the SLAM's published map (occupancy_values).
     """
     from turtlebot3c_maps.map_files import OccupancyMap
+    from turtlebot3c_slam.occupancy_grid import occupancy_values
 
     angles = log.angle_min + np.arange(log.beams) * log.angle_increment
     ranges = np.where(np.isfinite(log.ranges), log.ranges, np.inf)
@@ -170,9 +170,7 @@ def reference_map(log, resolution=AMCL_MAP_RESOLUTION, max_range=AMCL_MAP_RANGE)
         log_odds[free] += AMCL_FREE_LOG_ODDS
         log_odds[hits] += AMCL_HIT_LOG_ODDS
         seen[free] = seen[hits] = True
-    cells = np.full(width * height, -1, dtype=np.int8)
-    cells[seen & (log_odds > 0.0)] = 100
-    cells[seen & (log_odds <= math.log(0.45 / 0.55))] = 0
+    cells = occupancy_values(log_odds, seen)
     return OccupancyMap(cells.reshape(height, width), resolution, (float(low[0]), float(low[1]), 0.0))
 
 

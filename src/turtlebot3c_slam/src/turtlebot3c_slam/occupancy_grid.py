@@ -244,14 +244,8 @@ class LogOddsGrid:
         return rows + w[1], cols + w[0], strength, offsets
 
     def to_occupancy_map(self, free_probability=0.45, margin=2):
-        """The observed part of the grid as an OccupancyMap with 100 / 0 / -1 cells (as gmapping publishes).
-
-        Occupied: the cells that hold more hits than misses, by weight (log-odds above 0), as
-        matching and tracing read the grid (see occupied()); with the shipped 0.85 / -0.4, a cell
-        that at least 32 % of the rays reaching it hit (gmapping's occ_thresh is 25 %). A wall seen
-        at a grazing angle or from afar is hit by some of the rays that reach it and passed by
-        others: at 65 % it went unknown, and AMCL, which sees only occupied cells, lost it
-        (aces, a map of the even scans, severe odometry: 0.084 m against 0.050, bench_slam_real)."""
+        """The observed part of the grid as an OccupancyMap with 100 / 0 / -1 cells (as gmapping
+        publishes; see occupancy_values)."""
         observed = self.observations > 0
         if not observed.any():
             return OccupancyMap(np.full((1, 1), -1, dtype=np.int8), self.resolution, self._corner(self.offset) + (0.0,))
@@ -259,16 +253,28 @@ class LogOddsGrid:
         cols = np.flatnonzero(observed.any(axis=0))
         r0, r1 = max(rows[0] - margin, 0), min(rows[-1] + margin + 1, observed.shape[0])
         c0, c1 = max(cols[0] - margin, 0), min(cols[-1] + margin + 1, observed.shape[1])
-        log_odds = self.log_odds[r0:r1, c0:c1]
-        cells = np.full(log_odds.shape, -1, dtype=np.int8)
-        seen = observed[r0:r1, c0:c1]
-        cells[seen & (log_odds > 0.0)] = 100
-        cells[seen & (log_odds <= _logit(free_probability))] = 0
+        cells = occupancy_values(self.log_odds[r0:r1, c0:c1], observed[r0:r1, c0:c1], free_probability)
         return OccupancyMap(cells, self.resolution, self._corner(self.offset + (c0, r0)) + (0.0,))
 
     def _corner(self, cell):
         """(x, y) of the lower corner of lattice cell (i, j)."""
         return tuple(float((index - self.cell_shift) * self.resolution) for index in cell)
+
+
+def occupancy_values(log_odds, observed, free_probability=0.45):
+    """100 / 0 / -1 (occupied / free / unknown) per cell of a log-odds array; `observed` marks the
+    cells some ray reached.
+
+    Occupied: the cells that hold more hits than misses, by weight (log-odds above 0), as
+    matching and tracing read the grid (LogOddsGrid.occupied); with the shipped 0.85 / -0.4, a
+    cell that more than 32 % of the rays reaching it hit (gmapping's occ_thresh is 25 %). A wall
+    seen at a grazing angle or from afar is hit by some of the rays that reach it and passed by
+    others: at 65 % it went unknown, and AMCL, which sees only occupied cells, lost it (aces, a
+    map of the even scans, severe odometry: 0.084 m against 0.050, bench_slam_real)."""
+    cells = np.full(log_odds.shape, -1, dtype=np.int8)
+    cells[observed & (log_odds > 0.0)] = 100
+    cells[observed & (log_odds <= _logit(free_probability))] = 0
+    return cells
 
 
 def _logit(probability):
