@@ -57,7 +57,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
-from typing import NamedTuple, Optional
+from typing import List, NamedTuple, Optional
 
 import numpy as np
 
@@ -248,29 +248,33 @@ def _run_icp_slam(log, odometry, workdir):
     return PeerRun("icp-slam", rows[:, 1:4].copy(), seconds, peak, wall)
 
 
-def run_pf_localization(log, odometry, map_scans, start, spread, workdir, max_range) -> PeerRun:
-    """pf-localization over every scan of `log` with `odometry` (N, 3), in a map of the scans
-    `map_scans` (a mask) at their reference poses, its particles first spread uniformly over the
-    free cells within `spread` (m, m, rad) of `start` (x, y, theta). Scans and map keep readings up
-    to `max_range` m. Not kept: pf-localization seeds from the clock, so every run differs."""
+def run_pf_localization(log, odometry, map_scans, start, spread, workdir, max_range, runs=1) -> List[PeerRun]:
+    """pf-localization `runs` times over every scan of `log` with `odometry` (N, 3), in a map of
+    the scans `map_scans` (a mask) at their reference poses, its particles first spread uniformly
+    over the free cells within `spread` (m, m, rad) of `start` (x, y, theta). Scans and map keep
+    readings up to `max_range` m; both are written once for all the runs. Not kept:
+    pf-localization seeds from the clock, so every run differs."""
     workdir = Path(workdir)
     workdir.mkdir(parents=True, exist_ok=True)
     rawlog, simplemap = workdir / "scans.rawlog", workdir / "map.simplemap"
     write_rawlog(log, odometry, rawlog, max_range)
     write_simplemap(log, log.reference, map_scans, simplemap, max_range)
     (x, y, theta), (half_x, half_y, half_theta) = start, spread
-    config = _config(PF_CONFIG, workdir / "pf-localization.ini", {
-        "map_file": str(simplemap), "rawlog_file": str(rawlog), "logOutput_dir": str(workdir / "pf-out"),
-        "init_PDF_min_x": x - half_x, "init_PDF_max_x": x + half_x,
-        "init_PDF_min_y": y - half_y, "init_PDF_max_y": y + half_y,
-        "init_PDF_min_yaw_deg": math.degrees(theta - half_theta),
-        "init_PDF_max_yaw_deg": math.degrees(theta + half_theta)}, section_name="[LocalizationExperiment]")
-    output = workdir / "pf-localization.out"
-    seconds, peak, wall = _run(["pf-localization", str(config)], output)
-    estimates = pf_localization_estimates(output.read_text(errors="replace"))
-    if len(estimates) != len(log.stamps):
-        raise RuntimeError(f"pf-localization: {len(estimates)} estimates for {len(log.stamps)} scans")
-    return PeerRun("pf-localization", estimates, seconds, peak, wall)
+    done = []
+    for run in range(runs):
+        config = _config(PF_CONFIG, workdir / f"pf-localization-{run}.ini", {
+            "map_file": str(simplemap), "rawlog_file": str(rawlog), "logOutput_dir": str(workdir / f"pf-out-{run}"),
+            "init_PDF_min_x": x - half_x, "init_PDF_max_x": x + half_x,
+            "init_PDF_min_y": y - half_y, "init_PDF_max_y": y + half_y,
+            "init_PDF_min_yaw_deg": math.degrees(theta - half_theta),
+            "init_PDF_max_yaw_deg": math.degrees(theta + half_theta)}, section_name="[LocalizationExperiment]")
+        output = workdir / f"pf-localization-{run}.out"
+        seconds, peak, wall = _run(["pf-localization", str(config)], output)
+        estimates = pf_localization_estimates(output.read_text(errors="replace"))
+        if len(estimates) != len(log.stamps):
+            raise RuntimeError(f"pf-localization: {len(estimates)} estimates for {len(log.stamps)} scans")
+        done.append(PeerRun("pf-localization", estimates, seconds, peak, wall))
+    return done
 
 
 # pf-localization's log line with its estimate after each scan: "PDF estimation: (x,y,theta_deg), ..."
