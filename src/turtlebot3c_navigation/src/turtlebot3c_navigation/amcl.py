@@ -60,10 +60,14 @@ class AmclParams(NamedTuple):
     converged_spread: float = 0.3  # m, position standard deviation of the main cluster
     converged_share: float = 0.9  # of the weight in the main cluster
     # Lost: when, for lost_updates filter updates in a row, fewer than lost_fit of the beams
-    # end within lost_fit_distance of an obstacle seen from the estimate, the filter starts
-    # a global relocalisation by itself (a wrong initial pose, a kidnapped robot). 0: never.
+    # that reach the map's obstacles, seen from the estimate, end on one (within
+    # lost_fit_distance) rather than pass through it, the filter starts a global
+    # relocalisation by itself (a wrong initial pose, a kidnapped robot). 0: never. A beam that
+    # ends short, in the open, counts neither way: something the map does not hold stands in
+    # front of its wall (people around the robot; fhw, in a turn on the spot, 80 % of the beams
+    # at the reference pose), and that is no sign of being lost.
     lost_fit_distance: float = 0.2
-    lost_fit: float = 0.4
+    lost_fit: float = 0.8
     lost_updates: int = 8
     # Before that global relocalisation, once per loss: a cloud along the odometry's path
     # since the last estimate whose scan pinned the position (see _pins_position), retraced
@@ -159,7 +163,7 @@ class ParticleFilter:
         self._w_slow = 0.0
         self._w_fast = 0.0
         self.estimate: Optional[Estimate] = None
-        self.fit = 1.0  # share of beams that fit the map from the estimate, last update
+        self.fit = 1.0  # share of the beams reaching the map's obstacles that end on one, from the estimate
         self._lost_count = 0
         self.relocalizations = 0  # global relocalisations started because the robot was lost
         self.local_respreads = 0  # clouds spread along the path driven because the robot was lost
@@ -256,12 +260,16 @@ class ParticleFilter:
         ranges, angles = self.select_beams(ranges, angles, range_min)
         if ranges.size == 0:
             return False
-        distances = self.field.end_point_distances(self.estimate.pose, ranges, angles, sensor_offset)
-        self.fit = float((distances < p.lost_fit_distance).mean())
-        self._lost_count = self._lost_count + 1 if self.fit < p.lost_fit else 0
+        pose = self.estimate.pose
+        ends_on = self.field.end_point_distances(pose, ranges, angles, sensor_offset) < p.lost_fit_distance
+        passes_through = int(self.field.passes_obstacle(
+            pose, ranges[~ends_on], angles[~ends_on], p.lost_fit_distance, sensor_offset).sum())
+        if ends_on.any() or passes_through:  # else every beam ended short: no evidence either way
+            self.fit = float(ends_on.sum()) / (ends_on.sum() + passes_through)
+            self._lost_count = self._lost_count + 1 if self.fit < p.lost_fit else 0
         if self._lost_count == 0:
             self._local_tried = False
-        if self._lost_count == 0 and self._pins_position(ranges, angles, sensor_offset):
+        if self._lost_count == 0 and self._pins_position(ranges, angles, sensor_offset, float(ends_on.mean())):
             self._anchor = (self.estimate.pose, [tuple(self.last_odom)])
         elif self._anchor is not None:
             self._anchor[1].append(tuple(self.last_odom))
@@ -273,14 +281,15 @@ class ParticleFilter:
         self._tracked = self._tracked or self._fit_streak >= p.lost_updates
         return self._lost_count >= p.lost_updates
 
-    def _pins_position(self, ranges, angles, sensor_offset) -> bool:
-        """Whether the scan fits clearly worse PIN_SHIFT ahead of, behind, left and right of the estimate."""
+    def _pins_position(self, ranges, angles, sensor_offset, fit_here) -> bool:
+        """Whether the scan fits clearly worse PIN_SHIFT ahead of, behind, left and right of the
+        estimate, where fit_here of its beams end on an obstacle."""
         p = self.params
         x, y, yaw = self.estimate.pose
         for direction in (yaw, yaw + math.pi, yaw + math.pi / 2, yaw - math.pi / 2):
             moved = (x + PIN_SHIFT * math.cos(direction), y + PIN_SHIFT * math.sin(direction), yaw)
             distances = self.field.end_point_distances(moved, ranges, angles, sensor_offset)
-            if float((distances < p.lost_fit_distance).mean()) > self.fit - PIN_MARGIN:
+            if float((distances < p.lost_fit_distance).mean()) > fit_here - PIN_MARGIN:
                 return False
         return True
 
