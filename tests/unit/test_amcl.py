@@ -80,15 +80,19 @@ def test_a_turn_in_place_spreads_the_heading_by_alpha1_times_the_turn():
         assert heading.std() == pytest.approx(math.sqrt(0.2), rel=0.1)
 
 
-def test_a_lost_filter_first_spreads_its_cloud_around_the_last_fitted_estimate_then_goes_global():
-    # From (2, 2) in the open grid's 4 m box the walls are 1.9 m / max(|cos|, |sin|) away: a
-    # scan that fits. Beams of 3.4 m in every direction fit from nowhere in it: a scan that does not.
-    occupied, info = open_grid()
+def filter_at_the_open_grid_centre():
+    """A filter sure the robot is at (2, 2) in the open grid's 4 m box, with 90 beam angles and
+    the ranges that fit there: the walls are 1.9 m / max(|cos|, |sin|) away."""
     params = AmclParams(min_particles=200, max_particles=1000, recovery_alpha_slow=0.0, recovery_alpha_fast=0.0)
-    particle_filter = ParticleFilter(occupied, info, params=params, seed=1)
+    particle_filter = ParticleFilter(*open_grid(), params=params, seed=1)
     particle_filter.set_pose((2.0, 2.0, 0.0), np.diag([1e-4, 1e-4, 1e-4]))
     angles = np.linspace(-math.pi, math.pi, 90, endpoint=False)
-    fitting = 1.9 / np.maximum(np.abs(np.cos(angles)), np.abs(np.sin(angles)))
+    return particle_filter, angles, 1.9 / np.maximum(np.abs(np.cos(angles)), np.abs(np.sin(angles)))
+
+
+def test_a_lost_filter_first_spreads_its_cloud_around_the_last_fitted_estimate_then_goes_global():
+    # Beams of 3.4 m in every direction fit from nowhere in the open grid: a scan that does not fit.
+    particle_filter, angles, fitting = filter_at_the_open_grid_centre()
     lost_updates = particle_filter.params.lost_updates
     for _ in range(lost_updates):  # tracking: the beams fit lost_updates times in a row
         particle_filter.update((0.0, 0.0, 0.0), fitting, angles)
@@ -123,12 +127,7 @@ def test_people_around_the_robot_are_no_sign_of_being_lost():
     # a turn on the spot: 80 % of the beams at the reference pose). They say nothing of where it
     # is; the beams that reach the walls end on them. Counted as not fitting, they made the
     # filter spread its cloud, which settled 3 m off for two scans (fhw, severe, scans 63-64).
-    occupied, info = open_grid()
-    params = AmclParams(min_particles=200, max_particles=1000, recovery_alpha_slow=0.0, recovery_alpha_fast=0.0)
-    particle_filter = ParticleFilter(occupied, info, params=params, seed=1)
-    particle_filter.set_pose((2.0, 2.0, 0.0), np.diag([1e-4, 1e-4, 1e-4]))
-    angles = np.linspace(-math.pi, math.pi, 90, endpoint=False)
-    fitting = 1.9 / np.maximum(np.abs(np.cos(angles)), np.abs(np.sin(angles)))
+    particle_filter, angles, fitting = filter_at_the_open_grid_centre()
     crowded = np.where(np.arange(90) % 5 == 0, fitting, 0.5)
     lost_updates = particle_filter.params.lost_updates
     for step in range(3 * lost_updates):
