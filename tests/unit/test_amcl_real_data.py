@@ -56,7 +56,7 @@ def test_on_a_5_hz_log_the_pose_between_filter_updates_stays_within_the_issue_ta
 
 def test_a_turn_on_the_spot_among_people_does_not_throw_the_filter_metres_off():
     # fhw, scans 55-61: the robot turns on the spot with something close all around it (median
-    # range 0.9 m; 20-35 % of the beams end on a wall even at the reference pose). While those
+    # range 0.9 m; 9-36 % of the beams end on a wall even at the reference pose). While those
     # beams counted as not fitting, the filter took itself for lost at scan 62, spread its
     # cloud along the path and settled 3.0 and 2.9 m off at scans 63 and 64.
     log = load_log("fhw")

@@ -93,7 +93,7 @@ class LikelihoodField:
 
     def end_point_distances(self, pose, ranges, angles, sensor_offset=(0.0, 0.0, 0.0)):
         """Distance (m) from each beam's end point to the nearest obstacle, seen from one pose."""
-        origin_x, origin_y, directions = _rays(pose, angles, sensor_offset)
+        origin_x, origin_y, directions = _rays(*pose, angles, sensor_offset)
         return self.distance_at(origin_x + np.asarray(ranges) * np.cos(directions),
                                 origin_y + np.asarray(ranges) * np.sin(directions))
 
@@ -105,7 +105,7 @@ class LikelihoodField:
         Marches along every ray at once, each step as long as the ray's clearance from the
         nearest obstacle allows (less a cell and a half, as the clearance is a cell centre's),
         so open space costs a few steps per metre."""
-        origin_x, origin_y, directions = _rays(pose, angles, sensor_offset)
+        origin_x, origin_y, directions = _rays(*pose, angles, sensor_offset)
         cos, sin = np.cos(directions), np.sin(directions)
         resolution = self.info.resolution
         reach = np.asarray(ranges, dtype=float) - margin
@@ -127,11 +127,8 @@ class LikelihoodField:
         `ranges` and `angles` are the valid beams only (in the sensor frame);
         `sensor_offset` is the sensor's pose in the robot frame."""
         poses = np.atleast_2d(poses)
-        sx, sy, syaw = sensor_offset
-        cos_t, sin_t = np.cos(poses[:, 2:3]), np.sin(poses[:, 2:3])
-        sensor_x = poses[:, 0:1] + cos_t * sx - sin_t * sy
-        sensor_y = poses[:, 1:2] + sin_t * sx + cos_t * sy
-        beam_angles = poses[:, 2:3] + syaw + np.asarray(angles)[None, :]
+        sensor_x, sensor_y, beam_angles = _rays(
+            poses[:, 0:1], poses[:, 1:2], poses[:, 2:3], np.asarray(angles)[None, :], sensor_offset)
         end_x = sensor_x + np.asarray(ranges)[None, :] * np.cos(beam_angles)
         end_y = sensor_y + np.asarray(ranges)[None, :] * np.sin(beam_angles)
         row, col = self.info.world_to_cell(end_x, end_y)
@@ -141,10 +138,9 @@ class LikelihoodField:
         return log_p.sum(axis=1)
 
 
-def _rays(pose, angles, sensor_offset):
-    """The sensor's position (x, y) and each beam's direction in the map frame, from the robot's pose."""
-    x, y, yaw = pose
+def _rays(x, y, yaw, angles, sensor_offset):
+    """The sensor's position (x, y) and each beam's direction in the map frame, from the robot's
+    pose: one pose, or a column of them (N x 1 arrays) against a row of angles."""
     sx, sy, syaw = sensor_offset
-    origin_x = x + math.cos(yaw) * sx - math.sin(yaw) * sy
-    origin_y = y + math.sin(yaw) * sx + math.cos(yaw) * sy
-    return origin_x, origin_y, yaw + syaw + np.asarray(angles)
+    cos, sin = np.cos(yaw), np.sin(yaw)
+    return x + cos * sx - sin * sy, y + sin * sx + cos * sy, yaw + syaw + np.asarray(angles)
