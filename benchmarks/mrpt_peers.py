@@ -152,6 +152,23 @@ def write_rawlog(log, odometry, path, max_range=MAX_RANGE):
     _convert("rawlog", log, range(len(log.stamps)), steps, path, max_range)
 
 
+def rawlog_in(workdir, log, odometry, max_range=MAX_RANGE) -> Path:
+    """The rawlog of `log`'s scans with `odometry` in `workdir`, written once per set of inputs:
+    every peer run and AMCL row of a log reads the same scans, and a large log takes a while
+    to convert. Named by its inputs, so a folder reused for another severity never serves a
+    stale one."""
+    digest = hashlib.sha256()
+    for part in (log.stamps, log.ranges, np.asarray(odometry, dtype=np.float64)):
+        digest.update(np.ascontiguousarray(part).tobytes())
+    digest.update(f"{log.angle_min!r} {log.angle_increment!r} {max_range!r}".encode())
+    path = Path(workdir) / f"scans-{digest.hexdigest()[:20]}.rawlog"
+    if not path.exists():
+        partial = path.with_suffix(".partial")
+        write_rawlog(log, odometry, partial, max_range)
+        partial.replace(path)
+    return path
+
+
 def write_simplemap(log, poses, scans, path, max_range=MAX_RANGE):
     """The scans of `log` that `scans` (a mask) marks, at their `poses` (N, 3), as an MRPT simplemap at `path`."""
     chosen = np.flatnonzero(scans)
@@ -220,8 +237,7 @@ def run_icp_slam(log, odometry, workdir) -> PeerRun:
 def _run_rbpf_slam(log, odometry, seed, workdir):
     workdir = Path(workdir)
     workdir.mkdir(parents=True, exist_ok=True)
-    rawlog = workdir / "scans.rawlog"
-    write_rawlog(log, odometry, rawlog)
+    rawlog = rawlog_in(workdir, log, odometry)
     out = workdir / "rbpf-out"
     config = _config(RBPF_CONFIG, workdir / "rbpf-slam.ini",
                      {"logOutput_dir": str(out), "RANDOM_SEED": str(int(seed))})
@@ -237,8 +253,7 @@ def _run_rbpf_slam(log, odometry, seed, workdir):
 def _run_icp_slam(log, odometry, workdir):
     workdir = Path(workdir)
     workdir.mkdir(parents=True, exist_ok=True)
-    rawlog = workdir / "scans.rawlog"
-    write_rawlog(log, odometry, rawlog)
+    rawlog = rawlog_in(workdir, log, odometry)
     out = workdir / "icp-out"
     config = _config(ICP_CONFIG, workdir / "icp-slam.ini", {"logOutput_dir": str(out)})
     seconds, peak, wall = _run(["icp-slam", str(config), str(rawlog)], workdir / "icp-slam.out")
@@ -256,8 +271,7 @@ def run_pf_localization(log, odometry, map_scans, start, spread, workdir, max_ra
     pf-localization seeds from the clock, so every run differs."""
     workdir = Path(workdir)
     workdir.mkdir(parents=True, exist_ok=True)
-    rawlog, simplemap = workdir / "scans.rawlog", workdir / "map.simplemap"
-    write_rawlog(log, odometry, rawlog, max_range)
+    rawlog, simplemap = rawlog_in(workdir, log, odometry, max_range), workdir / "map.simplemap"
     write_simplemap(log, log.reference, map_scans, simplemap, max_range)
     (x, y, theta), (half_x, half_y, half_theta) = start, spread
     done = []
