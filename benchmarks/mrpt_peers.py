@@ -157,9 +157,7 @@ def rawlog_in(workdir, log, odometry, max_range=MAX_RANGE) -> Path:
     every peer run and AMCL row of a log reads the same scans, and a large log takes a while
     to convert. Named by its inputs, so a folder reused for another severity never serves a
     stale one."""
-    digest = hashlib.sha256()
-    for part in (log.stamps, log.ranges, np.asarray(odometry, dtype=np.float64)):
-        digest.update(np.ascontiguousarray(part).tobytes())
+    digest = _scans_digest(log, odometry)
     digest.update(f"{log.angle_min!r} {log.angle_increment!r} {max_range!r}".encode())
     path = Path(workdir) / f"scans-{digest.hexdigest()[:20]}.rawlog"
     if not path.exists():
@@ -195,11 +193,17 @@ def _convert(kind, log, indices, poses, path, max_range):
     text.unlink()
 
 
-def _kept(name, log, odometry, seed, run):
-    """run() unless a run with the same inputs is kept in RUNS; kept afterwards either way."""
+def _scans_digest(log, odometry):
+    """A sha256 fed with `log`'s scans and `odometry`, to go on feeding."""
     digest = hashlib.sha256()
     for part in (log.stamps, log.ranges, np.asarray(odometry, dtype=np.float64)):
         digest.update(np.ascontiguousarray(part).tobytes())
+    return digest
+
+
+def _kept(name, log, odometry, seed, run):
+    """run() unless a run with the same inputs is kept in RUNS; kept afterwards either way."""
+    digest = _scans_digest(log, odometry)
     for path in (RBPF_CONFIG, ICP_CONFIG, Path(__file__), CONVERTER_SOURCE, Path(shutil.which(name))):
         digest.update(path.read_bytes())
     digest.update(f"{log.angle_min!r} {log.angle_increment!r} {seed}".encode())
