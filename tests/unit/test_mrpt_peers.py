@@ -1,7 +1,10 @@
 """The MRPT peers' runner (benchmarks/mrpt_peers.py): which failures are kept as the peer's answer,
-how a run's settings are written and how pf-localization's estimates are read."""
+how a run's settings are written, how pf-localization's estimates are read, and when a log's
+rawlog is written."""
 import math
+from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 from benchmarks import mrpt_peers
@@ -39,3 +42,23 @@ def test_a_peer_config_sets_keys_of_its_own_section_only(tmp_path):
     with pytest.raises(ValueError):
         mrpt_peers._config(template, tmp_path / "bad.ini", {"rawlog_file": "r"},
                            section_name="[LocalizationExperiment]")
+
+
+def test_a_logs_rawlog_is_written_once_per_set_of_inputs(tmp_path, monkeypatch):
+    written = []
+
+    def write_rawlog(log, odometry, path, max_range):
+        written.append(max_range)
+        path.write_text("rawlog")
+
+    monkeypatch.setattr(mrpt_peers, "write_rawlog", write_rawlog)
+    log = SimpleNamespace(stamps=np.arange(3.0), ranges=np.ones((3, 4)), angle_min=-1.5, angle_increment=1.0)
+    odometry = np.zeros((3, 3))
+    first = mrpt_peers.rawlog_in(tmp_path, log, odometry)
+    assert mrpt_peers.rawlog_in(tmp_path, log, odometry) == first
+    assert written == [mrpt_peers.MAX_RANGE]
+    # Another severity's odometry, or another range, in the same folder: a rawlog of its own.
+    other_odometry = mrpt_peers.rawlog_in(tmp_path, log, odometry + 0.1)
+    other_range = mrpt_peers.rawlog_in(tmp_path, log, odometry, 80.0)
+    assert len({first, other_odometry, other_range}) == 3
+    assert written == [mrpt_peers.MAX_RANGE, mrpt_peers.MAX_RANGE, 80.0]
