@@ -54,15 +54,18 @@ def test_on_a_5_hz_log_the_pose_between_filter_updates_stays_within_the_issue_ta
     assert run.held >= 0.95
 
 
-def test_a_turn_on_the_spot_among_people_does_not_throw_the_filter_metres_off():
-    # fhw, scans 55-61: the robot turns on the spot with something close all around it (median
-    # range 0.9 m; 9-36 % of the beams end on a wall even at the reference pose). While those
-    # beams counted as not fitting, the filter took itself for lost at scan 62, spread its
-    # cloud along the path and settled 3.0 and 2.9 m off at scans 63 and 64.
+@pytest.mark.parametrize("seed", [1, 3])
+def test_a_turn_on_the_spot_among_people_does_not_throw_the_filter_metres_off(seed):
+    # fhw, scans 55-65: the robot turns on the spot with something close all around it (median
+    # range 0.8-0.9 m; at the reference pose 9-36 % of the beams end on a wall). Seed 1: while
+    # the beams that end short counted as not fitting, the filter took itself for lost at scan
+    # 62, spread its cloud along the path and settled 3.0 m off (now at most 0.69 m, at scans
+    # 60-62). Seed 3: while those beams counted in the weighting, scan 59 turned the cloud 84
+    # degrees, and it was lost until scan 120, up to 49 m off (now at most 0.32 m).
     log = load_log("fhw")
-    run = run_amcl(log.head(80), "severe", seed=1, occupancy_map=reference_map(log))
+    run = run_amcl(log.head(130), "severe", seed=seed, occupancy_map=reference_map(log))
     assert run.converged_at == 0
-    assert run.translation_errors[63:].max() < 0.5  # 0.2 here
+    assert run.translation_errors[55:].max() < 1.0
 
 
 def test_convergence_is_the_first_scan_within_the_bound_that_most_of_the_next_scans_keep():
