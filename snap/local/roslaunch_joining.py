@@ -26,12 +26,19 @@ import sys
 import threading
 import time
 
-import rosgraph.names
-import roslaunch
-import roslaunch.launch
-from roslaunch.core import RLException, is_machine_local, printerrlog
+# Until roslaunch installs its own handlers, as it creates its first node, a SIGINT (the
+# mapping daemon's stop signal) must end this process at once. Python's default raises
+# KeyboardInterrupt instead, which one of the bare `except:`s on roslaunch's way in can
+# swallow: the stop is lost, and the nodes started after it never get one, so the daemon
+# stays up until snapd's stop-timeout kills it.
+signal.signal(signal.SIGINT, signal.SIG_DFL)
 
-from turtlebot3c_common.master_restart import MasterQuery
+import rosgraph.names  # noqa: E402 (after the SIGINT default, as its import is slow)
+import roslaunch  # noqa: E402
+import roslaunch.launch  # noqa: E402
+from roslaunch.core import RLException, is_machine_local, printerrlog  # noqa: E402
+
+from turtlebot3c_common.master_restart import MasterQuery  # noqa: E402
 
 SETTLE = 5.0  # s the master must stay the same once every node is registered
 REGISTER_WAIT = 120.0  # s to wait for the nodes to register (a node that never does: check then)

@@ -1,13 +1,15 @@
 """Faults of the snap's daemons and of the mapping app's map saving, through the snap's own scripts and snapsim.
 
 A daemon whose main process is SIGKILLed is stopped whole and restarted, per
-its restart-condition. A large map saved within the stop timeout; the save
-SIGKILLed, or the power lost, midway; the disk full: in every case
+its restart-condition; one stopped while its launch is still starting ends at
+once. A large map saved within the stop timeout; the save SIGKILLed, or the
+power lost, midway; the disk full: in every case
 current_map.yaml names a complete map, the new one or the previous one, which
 stays usable.
 """
 import os
 import signal
+import socket
 import subprocess
 import time
 
@@ -76,6 +78,33 @@ def test_stopping_mapping_with_a_large_map_saves_it_within_the_stop_timeout(syst
     occupancy = load_map(maps / current)
     assert occupancy.data.shape == (SIDE, SIDE)
     assert took < stop_timeout() / 2, "saving a large map takes more than half the stop timeout"
+
+
+def test_a_stop_while_the_launch_asks_whether_the_master_runs_ends_it_at_once_without_a_traceback(ros_env):
+    # roslaunch asks inside a bare `except:`, which swallowed the KeyboardInterrupt of a SIGINT (the
+    # mapping daemon's stop signal): the launch went on to start nodes no stop reached, and the stop
+    # waited out the stop-timeout.
+    silent_master = socket.socket()  # takes the connection and never answers: roslaunch waits in its ask
+    silent_master.bind(("127.0.0.1", 0))
+    silent_master.listen()
+    silent_master.settimeout(60)
+    uri = f"http://127.0.0.1:{silent_master.getsockname()[1]}"
+    joining = REPO / "snap" / "local" / "roslaunch_joining.py"
+    launch = subprocess.Popen(
+        [str(joining), "--wait", "turtlebot3c_slam", "turtlebot3c_mapping.launch"],
+        env=dict(ros_env, ROS_MASTER_URI=uri), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        asking, _ = silent_master.accept()
+        launch.send_signal(signal.SIGINT)
+        output = launch.communicate(timeout=10)[0]
+    except subprocess.TimeoutExpired:
+        launch.kill()
+        raise AssertionError(f"the launch outlived its SIGINT:\n{launch.communicate()[0]}") from None
+    finally:
+        silent_master.close()
+    asking.close()
+    assert launch.returncode == -signal.SIGINT, output
+    assert "Traceback" not in output, output
 
 
 def map_saver_running(system):
