@@ -97,12 +97,15 @@ def test_a_stop_while_the_launch_asks_whether_the_master_runs_ends_it_at_once_wi
         asking, _ = silent_master.accept()
         launch.send_signal(signal.SIGINT)
         output = launch.communicate(timeout=10)[0]
+        asking.close()
     except subprocess.TimeoutExpired:
         launch.kill()
         raise AssertionError(f"the launch outlived its SIGINT:\n{launch.communicate()[0]}") from None
     finally:
         silent_master.close()
-    asking.close()
+        if launch.poll() is None:  # it never asked (the accept timed out)
+            launch.kill()
+            launch.wait()
     assert launch.returncode == -signal.SIGINT, output
     assert "Traceback" not in output, output
 
