@@ -304,12 +304,13 @@ class ParticleFilter:
 
     def _beams_near_obstacles(self, pose, ranges, angles, sensor_offset):
         """Which beams, seen from `pose`, end on an obstacle, pass through one, or end at most
-        short_beam_min_gap short of the next one along them; the others end far out in the open."""
-        ends_on, passes_through = self._classify_beams(pose, ranges, angles, sensor_offset)
-        near = ends_on | passes_through
-        short = np.nonzero(~near)[0]
-        near[short] = self.field.passes_obstacle(
-            pose, ranges[short] + self.params.short_beam_min_gap, angles[short], 0.0, sensor_offset)
+        short_beam_min_gap short of the next one along them; the others end far out in the open.
+        One march per beam: a beam that passes through an obstacle also meets one within its
+        range plus the gap."""
+        near = self.field.end_point_distances(pose, ranges, angles, sensor_offset) < self.params.lost_fit_distance
+        off = np.nonzero(~near)[0]
+        near[off] = self.field.passes_obstacle(
+            pose, ranges[off] + self.params.short_beam_min_gap, angles[off], 0.0, sensor_offset)
         return near
 
     def _pins_position(self, ranges, angles, sensor_offset, fit_here) -> bool:
