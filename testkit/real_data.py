@@ -79,9 +79,9 @@ def run_slam_with(log, odometry, config=None):
     slam.refine()  # as remap_bag does at the end
     seconds = float(scan_seconds.sum()) + time.process_time() - before
     trajectory = np.array([pose[1:] for pose in slam.trajectory()])
-    closures = [(keyframe_scan[old], keyframe_scan[new], measured) for old, new, measured, _ in slam.loop_closures]
+    closures = [(keyframe_scan[old], keyframe_scan[new], measured) for old, new, measured, _ in slam.loops.closures]
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-    return SlamRun(trajectory, odometry, closures, slam.rejected_loop_closures, seconds, scan_seconds,
+    return SlamRun(trajectory, odometry, closures, slam.loops.rejected, seconds, scan_seconds,
                    peak)
 
 

@@ -17,12 +17,12 @@ from turtlebot3c_sim.evaluation import (
 from turtlebot3c_sim.simulation import NoiseConfig, Simulation
 from turtlebot3c_sim.world import load_world, world_from_description
 from turtlebot3c_slam.line_icp import LineCloud, align
+from turtlebot3c_slam.loop_closure import DriftPath, LoopClosure, keyframes_agree, nearest_view, within_check
 from turtlebot3c_slam.occupancy_grid import CellUpdate, LogOddsGrid, trace_scan
 from turtlebot3c_slam.pose_graph import PoseGraph
 from turtlebot3c_slam.scan_matcher import GridMatcher, sparse_likelihood_field
 from turtlebot3c_slam.slam import (
     Keyframe,
-    LoopClosure,
     RedrawBudget,
     Slam,
     SlamConfig,
@@ -503,28 +503,22 @@ def keyframe_seeing_room_corner(pose, travel):
     return keyframe_of_hits(room_corner_points(pose), travel, ScanGeometry(-math.pi / 2, 0.01, 315, 0.0, math.inf))
 
 
-def slam_with_keyframes_seeing(old_hits, new_hits):
-    """A SLAM holding two keyframes, 50 m of path apart, whose full-circle scans hit these."""
+def keyframes_seeing(old_hits, new_hits):
+    """Two keyframes, 50 m of path apart, whose full-circle scans hit these."""
     geometry = ScanGeometry(-math.pi, 0.01, 628, 0.0, math.inf)
-    slam = Slam()
-    slam.keyframes = [keyframe_of_hits(old_hits, 0.0, geometry), keyframe_of_hits(new_hits, 50.0, geometry)]
-    return slam
+    return keyframe_of_hits(old_hits, 0.0, geometry), keyframe_of_hits(new_hits, 50.0, geometry)
 
 
 def test_a_loop_closure_the_two_keyframes_own_scans_contradict_is_refused():
     """A match of the recent scans against the old map can be right while the edge it makes to
     the old keyframe is wrong, if that keyframe sits wrong among its neighbours."""
-    slam = Slam()
+    config = SlamConfig()
     old_pose, new_pose = (0.0, 0.0, 0.0), (0.3, -0.2, 0.4)
-    slam.keyframes = [keyframe_seeing_room_corner(old_pose, 0.0), keyframe_seeing_room_corner(new_pose, 10.0)]
+    old, new = keyframe_seeing_room_corner(old_pose, 0.0), keyframe_seeing_room_corner(new_pose, 10.0)
     truth = relative(old_pose, new_pose)
-
-    def closure(measured):
-        return LoopClosure(0, 1, measured, 0.9, (0.0, 0.0, 0.0), new_pose)
-
-    assert slam._keyframes_agree(closure(truth))
-    assert not slam._keyframes_agree(closure(compose(truth, (0.4, 0.0, 0.0))))
-    assert not slam._keyframes_agree(closure(compose(truth, (0.0, 0.0, 0.05))))
+    assert keyframes_agree(old, new, truth, config)
+    assert not keyframes_agree(old, new, compose(truth, (0.4, 0.0, 0.0)), config)
+    assert not keyframes_agree(old, new, compose(truth, (0.0, 0.0, 0.05)), config)
 
 
 def corridor_with_doors_points(x_from, x_to, pose, period=1.0, door=0.4):
@@ -543,12 +537,12 @@ def test_a_loop_closure_in_a_corridor_whose_doors_repeat_is_refused():
     old_pose, new_pose = (0.0, 0.0, 0.0), (1.0, 0.0, 0.0)
     old_hits = corridor_with_doors_points(-8.0, 8.0, old_pose)
     new_hits = corridor_with_doors_points(-5.0, 7.0, new_pose)
-    slam = slam_with_keyframes_seeing(old_hits, new_hits)
+    config = SlamConfig()
+    old, new = keyframes_seeing(old_hits, new_hits)
     one_door_short = (0.0, 0.0, 0.0)
-    closure = LoopClosure(0, 1, one_door_short, 0.9, (0.0, 0.0, 0.0), new_pose)
     aligned, _ = align(LineCloud(old_hits), new_hits, one_door_short)
-    assert slam._within_check(aligned, one_door_short)  # the scans alone agree with the look-alike
-    assert not slam._keyframes_agree(closure)
+    assert within_check(aligned, one_door_short, config)  # the scans alone agree with the look-alike
+    assert not keyframes_agree(old, new, one_door_short, config)
 
 
 def test_a_loop_closure_probes_for_look_alikes_as_far_as_its_search_reached():
@@ -557,10 +551,10 @@ def test_a_loop_closure_probes_for_look_alikes_as_far_as_its_search_reached():
     old_pose, new_pose = (0.0, 0.0, 0.0), (3.0, 0.0, 0.0)
     old_hits = corridor_with_doors_points(-12.0, 12.0, old_pose, period=3.0, door=0.8)
     new_hits = corridor_with_doors_points(-6.0, 9.0, new_pose, period=3.0, door=0.8)
-    slam = slam_with_keyframes_seeing(old_hits, new_hits)
-    one_door_short = LoopClosure(0, 1, (0.0, 0.0, 0.0), 0.9, (0.0, 0.0, 0.0), new_pose)
-    assert slam._keyframes_agree(one_door_short, window=1.0)  # a metre's probes cannot tell
-    assert not slam._keyframes_agree(one_door_short, window=3.5)
+    old, new = keyframes_seeing(old_hits, new_hits)
+    one_door_short = (0.0, 0.0, 0.0)
+    assert keyframes_agree(old, new, one_door_short, SlamConfig(), window=1.0)  # a metre's probes cannot tell
+    assert not keyframes_agree(old, new, one_door_short, SlamConfig(), window=3.5)
 
 
 def test_a_loop_closure_is_refused_when_a_look_alike_fits_almost_as_well():
@@ -576,45 +570,43 @@ def test_a_loop_closure_is_refused_when_a_look_alike_fits_almost_as_well():
                                stub(old_pose)))
     new_hits = np.concatenate((corridor_with_doors_points(-6.0, 9.0, new_pose, period=3.0, door=0.8),
                                stub(new_pose)))
-    slam = slam_with_keyframes_seeing(old_hits, new_hits)
-    right = LoopClosure(0, 1, relative(old_pose, new_pose), 0.9, (0.0, 0.0, 0.0), new_pose)
-    assert not slam._keyframes_agree(right, window=3.5)
-    slam.ALIAS_FIT_SHARE = 1.0  # only a look-alike that fits at least as well
-    assert slam._keyframes_agree(right, window=3.5)
+    old, new = keyframes_seeing(old_hits, new_hits)
+    right = relative(old_pose, new_pose)
+    assert not keyframes_agree(old, new, right, SlamConfig(), window=3.5)
+    # only a look-alike that fits at least as well
+    assert keyframes_agree(old, new, right, SlamConfig(), window=3.5, fit_share=1.0)
 
 
 def test_the_loop_search_widens_with_the_path_between_the_keyframes_a_closed_loop_a_shortcut():
-    slam = Slam()
-    config = slam.config
-    for travel in (0.0, 100.0, 200.0, 300.0, 400.0):  # keyframes 100 m of path apart
-        slam.keyframes.append(Keyframe(travel, None, None, travel))
-        slam._extend_drift_path()
-    assert slam._drift_path == pytest.approx([400.0, 300.0, 200.0, 100.0, 0.0])
-    assert slam._loop_windows(np.array([10.0, 100.0, 1000.0])) == pytest.approx(
-        [config.loop_window_xy, config.loop_drift * 100.0, config.loop_window_max_xy])
-    slam._shorten_drift_path(LoopClosure(1, 3, (0.0, 0.0, 0.0), 0.9, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)))
+    config = SlamConfig()
+    drift_path = DriftPath()
+    travel = np.array([0.0, 100.0, 200.0, 300.0, 400.0])  # keyframes 100 m of path apart
+    drift_path.extend(0.0)
+    for _ in travel[1:]:
+        drift_path.extend(100.0)
+    assert drift_path.metres == pytest.approx([400.0, 300.0, 200.0, 100.0, 0.0])
+    assert drift_path.windows(config, 5) == pytest.approx(
+        [config.loop_window_max_xy, config.loop_drift * 300.0, config.loop_drift * 200.0, config.loop_drift * 100.0,
+         config.loop_window_xy])
+    drift_path.shorten(travel, LoopClosure(1, 3, (0.0, 0.0, 0.0), 0.9, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)))
     # Keyframe 3 was found back at keyframe 1, 100 m of path before the newest one.
-    assert slam._drift_path == pytest.approx([200.0, 100.0, 200.0, 100.0, 0.0])
+    assert drift_path.metres == pytest.approx([200.0, 100.0, 200.0, 100.0, 0.0])
 
 
 def test_a_loop_closure_between_keyframes_that_overlap_too_little_to_judge_is_refused():
     """Unjudged closures were the false ones on freiburg-079: a missed loop costs a little
     drift, a false one a broken map."""
-    slam = Slam()
     old_pose, new_pose = (0.0, 0.0, 0.0), (0.3, -0.2, 0.4)
-    slam.keyframes = [keyframe_seeing_room_corner(old_pose, 0.0), keyframe_seeing_room_corner(new_pose, 10.0)]
-    slam.keyframes[1].rays.hits = slam.keyframes[1].rays.hits[:10]
-    truth = relative(old_pose, new_pose)
-    assert not slam._keyframes_agree(LoopClosure(0, 1, truth, 0.9, (0.0, 0.0, 0.0), new_pose))
+    old, new = keyframe_seeing_room_corner(old_pose, 0.0), keyframe_seeing_room_corner(new_pose, 10.0)
+    new.rays.hits = new.rays.hits[:10]
+    assert not keyframes_agree(old, new, relative(old_pose, new_pose), SlamConfig())
 
 
 def test_a_loop_closure_joins_the_old_keyframe_that_looked_the_same_way():
     """Of the old keyframes around the match, the nearest one looking back the other way shares
     little of the newest keyframe's view; one a little farther, looking the same way, shares it."""
-    slam = Slam()
-    for pose in [(0.0, 0.0, math.pi), (0.5, 0.0, 0.1), (3.0, 0.0, 0.0)]:
-        slam.graph.add_node(pose)
-    assert slam._nearest_view([0, 1, 2], (0.1, 0.0, 0.0)) == 1
+    poses = np.array([(0.0, 0.0, math.pi), (0.5, 0.0, 0.1), (3.0, 0.0, 0.0)])
+    assert nearest_view(poses, [0, 1, 2], (0.1, 0.0, 0.0)) == 1
 
 
 def test_unknown_or_bad_slam_parameters_are_rejected_with_their_names():
@@ -711,7 +703,7 @@ def test_redrawing_the_map_outside_the_slam_gives_the_same_map_unless_keyframes_
 def test_house_loop_closes_without_a_doubled_wall(house_run):
     slam, world, truth, _ = house_run
     agreement, precision, ate = map_quality(slam, world, truth)
-    assert slam.loop_closures
+    assert slam.loops.closures
     assert precision >= 0.97  # a doubled wall would put many occupied cells off every true wall
     assert agreement >= 0.95
     assert ate <= 0.06

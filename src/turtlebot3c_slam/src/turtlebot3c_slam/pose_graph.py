@@ -15,6 +15,11 @@ from scipy.sparse.linalg import spsolve
 from turtlebot3c_common.se2 import wrap_angle
 
 
+def diagonal_information(sigma_xy, sigma_theta):
+    """The information matrix of a measurement with independent errors of these sigmas (m, rad)."""
+    return np.diag([1.0 / sigma_xy ** 2, 1.0 / sigma_xy ** 2, 1.0 / sigma_theta ** 2])
+
+
 class Edge:
     def __init__(self, i, j, measurement, information, robust=False):
         self.i, self.j = int(i), int(j)

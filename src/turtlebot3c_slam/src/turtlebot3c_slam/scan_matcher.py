@@ -39,6 +39,13 @@ def swept_bounds(points, pose, window_xy, window_theta):
     return np.array([laid_x.min(), laid_y.min()]) - slack, np.array([laid_x.max(), laid_y.max()]) + slack
 
 
+def searched_cells(points, pose, window_xy, window_theta, resolution):
+    """Lowest and highest lattice cell (i, j) robot-frame points can fall in when a search tries
+    poses within +-window_xy, +-window_theta of `pose` (its last rotation step may overshoot)."""
+    low, high = swept_bounds(points, pose, window_xy, window_theta + MAX_ANGLE_STEP)
+    return np.floor(low / resolution).astype(np.int64), np.floor(high / resolution).astype(np.int64)
+
+
 def sparse_likelihood_field(shape, rows, cols, strength, offsets, sigma_cells=1.0, radius=FIELD_RADIUS):
     """How well a point in each cell of a window `shape` (h, w) agrees with its obstacle cells
     (rows, cols), of strength in (0, 1] and with offsets (K, 2), in cells, from their centres to

@@ -32,24 +32,11 @@ How it works:
   scans match against.
 - *Keyframes*: after `keyframe_distance` metres or `keyframe_angle` radians, the scan becomes
   a node of the pose graph, chained to the previous keyframe by the tracked relative pose.
-- *Loop closure*: a new keyframe near an old part of the trajectory (more than
-  `loop_min_travel` metres of path ago, within `loop_search_radius`) is matched, with the
-  last few keyframes' points, against a submap built from the old keyframes around there,
-  over a wide window (branch and bound keeps that fast). The map drifts along the path: the
-  window, and how far off an old keyframe may be, grow by `loop_drift` per metre of path
-  between it and the newest one (a closed loop is a shortcut; up to `loop_window_max_xy`),
-  so that a loop a few hundred metres long still closes. The closure's edge joins the newest
-  keyframe to the old one nearest: a good match must also put those two where their own
-  scans, aligned directly (point-to-line ICP, line_icp), agree within `loop_check_*`, for an
-  old keyframe that sits a little wrong among its neighbours would make the edge wrong by as
-  much though the match was right; two keyframes that overlap too little to judge close no
-  loop, nor do two whose scans, aligned from further along a corridor (a metre, or as far as
-  the search reached), fit almost as well there. A good match is even then only a candidate:
-  corridors that look alike fool one match, so a closure is taken when a second one, within
-  `loop_pending_keyframes`, moves the map the same way; both become robust edges and the
-  graph is optimised, and an accepted closure the optimised graph still contradicts by more
-  than `loop_residual_*` is taken out again. The maps are then rebuilt from every keyframe at
-  its new pose, so the loop closes without doubled walls.
+- *Loop closure* (loop_closure): a new keyframe near an old part of the trajectory is matched
+  against the old keyframes there, over a window as wide as the map may have drifted along the
+  path between them; a match the two keyframes' own scans confirm, and a second one that moves
+  the map alike, close the loop. The maps are then rebuilt from every keyframe at its new
+  pose, so the loop closes without doubled walls.
 - The map frame is the odometry frame at the first scan (map -> odom starts as identity).
 """
 import collections
@@ -57,26 +44,19 @@ import math
 
 import numpy as np
 
-from turtlebot3c_common.se2 import compose, distance, inverse, relative, transform_points, wrap_angle
+from turtlebot3c_common.se2 import compose, distance, inverse, relative
 
 from . import scan_refinement
-from .line_icp import LineCloud, align
-from .occupancy_grid import LogOddsGrid, hit_cells
+from .loop_closure import LoopCloser
+from .occupancy_grid import LogOddsGrid
 from .odometry_calibration import OdometryCalibration, firmness_along_heading
-from .pose_graph import PoseGraph
-from .scan_matcher import FIELD_RADIUS, MAX_ANGLE_STEP, GridMatcher, sparse_likelihood_field, swept_bounds
+from .pose_graph import PoseGraph, diagonal_information
+from .scan_matcher import FIELD_RADIUS, GridMatcher, searched_cells, sparse_likelihood_field
 from .slam_scan import scan_rays, voxel_filter
 
 # Names turtlebot3_slam's `slam_methods` argument takes that this SLAM stands in for, with the
 # node name upstream gives each (its CI looks for turtlebot3_slam_gmapping).
 SLAM_METHODS = collections.OrderedDict([("gmapping", "turtlebot3_slam_gmapping"), ("karto", "slam_karto")])
-
-
-def searched_cells(points, pose, window_xy, window_theta, resolution):
-    """Lowest and highest lattice cell (i, j) robot-frame points can fall in when a search tries
-    poses within +-window_xy, +-window_theta of `pose` (its last rotation step may overshoot)."""
-    low, high = swept_bounds(points, pose, window_xy, window_theta + MAX_ANGLE_STEP)
-    return np.floor(low / resolution).astype(np.int64), np.floor(high / resolution).astype(np.int64)
 
 
 def check_slam_method(name):
@@ -233,34 +213,6 @@ class UnmatchedMotion:
         self.stamp = stamp
 
 
-class LoopClosure:
-    """A match of the newest keyframe against an old part of the map."""
-
-    def __init__(self, old, newest, measured, score, correction, at):
-        self.old, self.newest = old, newest
-        self.at = at                  # the newest keyframe's pose when matched
-        self.measured = measured      # the newest keyframe seen from the old one
-        self.score = score
-        self.correction = correction  # the rigid motion the match applies to the newest keyframe's map
-
-    def agrees_with(self, other, config):
-        """Whether both closures move the map alike (compared where the other was matched)."""
-        here = other.at
-        mine, theirs = compose(self.correction, here), compose(other.correction, here)
-        return distance(mine, theirs) <= config.loop_agreement_xy and \
-            abs(wrap_angle(mine[2] - theirs[2])) <= config.loop_agreement_theta
-
-    def moves_map(self, config):
-        return math.hypot(self.correction[0], self.correction[1]) > config.resolution * 0.5 or \
-            abs(self.correction[2]) > 0.005
-
-    def is_edge(self, edge):
-        return edge.i == self.old and edge.j == self.newest and edge.measurement == tuple(self.measured)
-
-    def edge_in(self, graph):
-        return any(self.is_edge(edge) for edge in graph.edges if edge.robust)
-
-
 def positions_towards(start, end, spacing):
     """Positions from `start` along the line to `end`, `start` first and `end` left out, at most
     `spacing` apart and from `end`: windows of half that width around them and `end` leave no gap."""
@@ -286,19 +238,6 @@ class Slam:
     # and its maxima where the points fall are what a map without edges would give.
     TRACKING_MAP_MARGIN = 0.5
     TRACKING_LEVELS = 3  # coarser maxima grids of the tracking search's branch and bound
-    LOOP_LEVELS = 5      # and of the loop-closure search's, over its wider window
-    VIEW_TURN_WEIGHT = 1.0  # m per rad: see _nearest_view
-    # See _fits_as_well_elsewhere: probes start every ALIAS_SHIFT_STEP m up to the loop search's
-    # half-width (ALIAS_MIN_REACH at least) either way; a pose that lays ALIAS_FIT_SHARE of the
-    # points on lines as well as the closure's is a look-alike.
-    ALIAS_SHIFT_STEP = 0.5
-    ALIAS_MIN_REACH = 1.0
-    ALIAS_FIT_SHARE = 0.9
-    ALIAS_ICP_ITERATIONS = 10  # enough to settle from a metre off; 3 % of freiburg-079's time
-    # After a long drift the widened loop search reaches other passes of the same place: its
-    # submap is the old keyframes nearest the newest one, up to a scan's spread beyond the window.
-    WIDE_SUBMAP_MARGIN = 2.0   # m
-    WIDE_SUBMAP_KEYFRAMES = 60
 
     def __init__(self, config=None):
         self.config = config or SlamConfig()
@@ -316,8 +255,6 @@ class Slam:
         self.odom = None
         self.travel = 0.0
         self.map_version = 0       # changes whenever the map may have changed
-        self._last_loop_attempt = -(10 ** 9)
-        self.loop_closures = []    # (old keyframe, new keyframe, new seen from old, score)
         self.poor_matches = 0
         self._poor_streak = 0      # poorly matched scans in a row
         self._unmatched = UnmatchedMotion()
@@ -327,10 +264,7 @@ class Slam:
         self.odometry_calibration = OdometryCalibration(
             self.config.odometry_scale_memory, self.config.odometry_error_distance, self.config.odometry_error_turn,
             self.config.odometry_error_heading)
-        self._pending_closures = []
-        self.rejected_loop_closures = 0
-        # m of path from each keyframe to the newest along which drift builds up (_extend_drift_path)
-        self._drift_path = np.zeros(0)
+        self.loops = LoopCloser(self.config)
 
     def _new_grid(self, resolution, cell_shift=0.0):
         return LogOddsGrid(resolution, self.config.hit_log_odds, self.config.free_log_odds, cell_shift)
@@ -499,10 +433,9 @@ class Slam:
     def _add_keyframe(self, stamp, rays, points):
         index = self.graph.add_node(self.pose)
         self.keyframes.append(Keyframe(stamp, rays, points, self.travel))
-        self._extend_drift_path()
         if index > 0:
             previous = tuple(self.graph.poses[index - 1])
-            self.graph.add_edge(index - 1, index, relative(previous, self.pose), self._information(
+            self.graph.add_edge(index - 1, index, relative(previous, self.pose), diagonal_information(
                 self.config.odometry_sigma_xy, self.config.odometry_sigma_theta))
         update = self.local_grid.hits_of(rays, self.pose)
         self.local_grid.apply(update)
@@ -515,12 +448,7 @@ class Slam:
             self.global_grid.add_scan(rays, self.pose)
         self._local_version += 1
         self.map_version += 1
-        if index - self._last_loop_attempt >= self.config.loop_attempt_every:
-            self._try_loop_closure(index)
-
-    @staticmethod
-    def _information(sigma_xy, sigma_theta):
-        return np.diag([1.0 / sigma_xy ** 2, 1.0 / sigma_xy ** 2, 1.0 / sigma_theta ** 2])
+        self.loops.keyframe_added(self.keyframes, self.graph, self._optimize)
 
     def _compact_local_map(self):
         """The local map's array afresh from the keyframes it holds. Its array only grows, and a
@@ -590,191 +518,7 @@ class Slam:
         return [(stamp,) + compose(tuple(self.graph.poses[index]), offset)
                 for stamp, index, offset in self._scans]
 
-    # --- loop closure ---------------------------------------------------------------------
-
-    def _try_loop_closure(self, newest):
-        config = self.config
-        oldest_local = newest - config.local_map_keyframes
-        if oldest_local <= 0:
-            return
-        travel = np.array([keyframe.travel for keyframe in self.keyframes[:oldest_local]])
-        path = self.keyframes[newest].travel - travel
-        windows = self._loop_windows(self._drift_path[:oldest_local])
-        poses = self.graph.poses[:oldest_local]
-        current = tuple(self.graph.poses[newest])
-        gaps = np.hypot(poses[:, 0] - current[0], poses[:, 1] - current[1])
-        eligible = (path >= config.loop_min_travel) & \
-            (gaps <= config.loop_search_radius + windows - config.loop_window_xy)
-        if not eligible.any():
-            return
-        self._last_loop_attempt = newest
-        candidate = int(np.flatnonzero(eligible)[np.argmin(gaps[eligible])])
-        window = float(windows[candidate])
-        members = self._submap_members(candidate, window, eligible, gaps)
-        cloud = self._recent_cloud(newest)
-        if len(cloud) < 20:
-            return
-        matcher = self._submap_matcher(members, current, cloud, window)
-        result = matcher.match(cloud, current, window, config.loop_window_theta, min_score=config.loop_min_score)
-        if result.score < config.loop_min_score:
-            return
-        pose = matcher.refine(cloud, result.pose).pose
-        old = self._nearest_view(members, pose)
-        closure = LoopClosure(old, newest, relative(tuple(self.graph.poses[old]), pose), result.score,
-                              compose(pose, inverse(current)), current)
-        if self._keyframes_agree(closure, window):
-            self._consider_loop_closure(closure)
-
-    def _loop_windows(self, drift_path):
-        """The loop search's half-width (m) towards old keyframes `drift_path` m of path away: as
-        far as the map may have drifted between them and the newest keyframe."""
-        config = self.config
-        return np.clip(config.loop_drift * drift_path, config.loop_window_xy, config.loop_window_max_xy)
-
-    def _extend_drift_path(self):
-        """The newest keyframe is the path's end: every keyframe is as much further from it."""
-        step = self.keyframes[-1].travel - self.keyframes[-2].travel if len(self.keyframes) > 1 else 0.0
-        self._drift_path = np.append(self._drift_path + step, 0.0)
-
-    def _shorten_drift_path(self, closure):
-        """A closed loop joins its two keyframes: a keyframe's path to the newest may now run to
-        the closure's old keyframe, across, and on. Only the shortcut through the one closure is
-        taken, not chains of several: the path may come out longer than the shortest, and the
-        search wider than it needs, never narrower. Counted from the last closure alone, the
-        drift missed a map bent 10-20 m elsewhere (infinite-corridor, acapulco)."""
-        travel = np.array([keyframe.travel for keyframe in self.keyframes])
-        across = np.abs(travel - travel[closure.old]) + travel[-1] - travel[closure.newest]
-        self._drift_path = np.minimum(self._drift_path, across)
-
-    def _submap_members(self, candidate, window, eligible, gaps):
-        """The old keyframes the loop search matches against: those along the path around the
-        candidate or, when the search has widened, the eligible ones nearest the newest keyframe
-        (`eligible` and `gaps` are per old keyframe)."""
-        config = self.config
-        if window <= config.loop_window_xy:
-            return [index for index in range(candidate - config.loop_submap_keyframes,
-                                             candidate + config.loop_submap_keyframes + 1)
-                    if 0 <= index < len(eligible)]
-        near = np.flatnonzero(eligible & (gaps <= window + self.WIDE_SUBMAP_MARGIN))
-        return sorted(near[np.argsort(gaps[near])[:self.WIDE_SUBMAP_KEYFRAMES]].tolist())
-
-    def _nearest_view(self, members, pose):
-        """The old keyframe whose view is nearest `pose`'s: close by, and looking the same way
-        (a turn of a radian counts as VIEW_TURN_WEIGHT metres), so that its scan overlaps the
-        newest keyframe's as much as the old keyframes allow."""
-        poses = self.graph.poses[members]
-        gaps = np.hypot(poses[:, 0] - pose[0], poses[:, 1] - pose[1]) + \
-            self.VIEW_TURN_WEIGHT * np.abs(wrap_angle(poses[:, 2] - pose[2]))
-        return members[int(np.argmin(gaps))]
-
-    def _keyframes_agree(self, closure, window=0.0):
-        """Whether the two keyframes' scans, aligned from the closure's relative pose, stay within
-        loop_check_* of it. On freiburg-101 the old keyframe sat 0.55 m off among its neighbours,
-        and a right match made an edge to it wrong by as much. The scans' every hit is aligned, not
-        the few points kept for matching, so that more pairs of keyframes overlap enough to judge;
-        those that still do not (a corridor walked back the other way) are refused: on
-        freiburg-079 the closures that could not be judged were the ones the scans contradict."""
-        old, newest = self.keyframes[closure.old], self.keyframes[closure.newest]
-        target = LineCloud(old.rays.hits)
-        aligned = align(target, newest.rays.hits, closure.measured)
-        if aligned is None:
-            return False
-        pose, hessian = aligned
-        return self._within_check(pose, closure.measured) and \
-            not self._fits_as_well_elsewhere(target, newest.points, pose, hessian, window)
-
-    def _within_check(self, pose, measured):
-        return distance(pose, measured) <= self.config.loop_check_xy and \
-            abs(wrap_angle(pose[2] - measured[2])) <= self.config.loop_check_theta
-
-    def _fits_as_well_elsewhere(self, target, points, pose, hessian, window):
-        """Whether the newest keyframe's points, aligned from further either way along the
-        direction the alignment pins least (a corridor's length), lie on the old scan's lines at
-        another pose almost as well as at `pose`; the starts reach as far as the loop search did.
-        Along a corridor ICP stops where a few door frames line up: on infinite-corridor
-        (odometry seeds 2-4) it agreed with closures 0.3-0.6 m along the corridor from where the
-        scans fit best, and the graph took them; a search widened to 5 m found doors 4.7 and 9 m
-        along that fit nearly as well. A closure whose scans fit as well elsewhere cannot say
-        where the robot is."""
-        _, directions = np.linalg.eigh(hessian[:2, :2])
-        along = directions[:, 0]
-        fit = target.points_on_lines(points, pose)
-        steps = int(max(self.ALIAS_MIN_REACH, window) / self.ALIAS_SHIFT_STEP + 1e-9)
-        for shift in self.ALIAS_SHIFT_STEP * np.arange(1, steps + 1):
-            for sign in (-1.0, 1.0):
-                start = (pose[0] + sign * shift * along[0], pose[1] + sign * shift * along[1], pose[2])
-                other = align(target, points, start, self.ALIAS_ICP_ITERATIONS)
-                if other is not None and not self._within_check(other[0], pose) and \
-                        target.points_on_lines(points, other[0]) >= self.ALIAS_FIT_SHARE * fit:
-                    return True
-        return False
-
-    def _consider_loop_closure(self, closure):
-        """Close loops only on closures that agree: one match can be fooled by corridors that look
-        alike, two from different places rarely agree on the same wrong correction. Accepted
-        closures that the optimised graph then contradicts are taken out again."""
-        config = self.config
-        self._pending_closures = [pending for pending in self._pending_closures
-                                  if closure.newest - pending.newest <= config.loop_pending_keyframes]
-        agreeing = [pending for pending in self._pending_closures if pending.agrees_with(closure, config)]
-        if not agreeing:
-            self._pending_closures.append(closure)
-            return
-        self._pending_closures = [pending for pending in self._pending_closures if pending not in agreeing]
-        accepted = agreeing + [closure]
-        information = self._information(config.loop_sigma_xy, config.loop_sigma_theta)
-        for each in accepted:
-            self.graph.add_edge(each.old, each.newest, each.measured, information, robust=True)
-        if any(each.moves_map(config) for each in accepted):
-            self._optimize()
-            self._drop_contradicted_closures(accepted)
-        kept = [each for each in accepted if each.edge_in(self.graph)]
-        self.loop_closures.extend((each.old, each.newest, each.measured, each.score) for each in kept)
-        for each in kept:
-            self._shorten_drift_path(each)
-
-    def _drop_contradicted_closures(self, accepted):
-        errors = self.graph.edge_errors()
-        index = {id(edge): position for position, edge in enumerate(self.graph.edges)}
-        wrong = [edge for edge in self.graph.edges if edge.robust and any(
-            each.is_edge(edge) for each in accepted) and self._contradicts(errors[index[id(edge)]])]
-        if wrong:
-            self.graph.edges = [edge for edge in self.graph.edges if edge not in wrong]
-            self.rejected_loop_closures += len(wrong)
-            self._optimize()
-
-    def _contradicts(self, error):
-        return math.hypot(error[0], error[1]) > self.config.loop_residual_xy or \
-            abs(error[2]) > self.config.loop_residual_theta
-
-    def _recent_cloud(self, newest):
-        current = tuple(self.graph.poses[newest])
-        parts = []
-        for index in range(max(0, newest - self.config.loop_cloud_keyframes + 1), newest + 1):
-            seen_from_current = relative(current, tuple(self.graph.poses[index]))
-            parts.append(transform_points(seen_from_current, self.keyframes[index].points))
-        cloud = voxel_filter(np.concatenate(parts), self.config.resolution)
-        limit = 2 * self.config.match_points
-        if len(cloud) > limit:
-            cloud = cloud[np.linspace(0, len(cloud) - 1, limit).astype(int)]
-        return cloud
-
-    def _submap_matcher(self, members, current, cloud, window):
-        """A matcher over the old keyframes' points where the cloud can fall in the loop search's
-        window, with room for the coarsest maxima's blocks and the field's spread."""
-        resolution = self.config.loop_match_resolution
-        low, high = searched_cells(cloud, current, window, self.config.loop_window_theta, resolution)
-        margin = (1 << self.LOOP_LEVELS) + FIELD_RADIUS
-        low, high = low - margin, high + margin
-        size = high - low + 1
-        hits = np.concatenate([transform_points(tuple(self.graph.poses[index]), self.keyframes[index].points)
-                               for index in members])
-        cells, sums, counts = hit_cells(hits, resolution)
-        cells -= low
-        inside = ((cells >= 0) & (cells < size)).all(axis=1)
-        field = sparse_likelihood_field((size[1], size[0]), cells[inside, 1], cells[inside, 0],
-                                        np.ones(inside.sum()), sums[inside] / counts[inside, None] - 0.5)
-        return GridMatcher(field, low, resolution, levels=self.LOOP_LEVELS)
+    # --- when the graph moves its keyframes (loop closure, refinement) ---------------------
 
     def _optimize(self):
         newest = len(self.keyframes) - 1
