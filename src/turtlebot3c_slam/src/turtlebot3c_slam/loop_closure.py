@@ -161,7 +161,7 @@ class LoopCloser:
     """Closes loops in a SLAM's pose graph as keyframes join it (see the module's docstring)."""
 
     def __init__(self, config):
-        self.config = config  # slam.SlamConfig: its loop_* parameters
+        self.config = config  # slam.SlamConfig (its loop_* parameters above all)
         self.drift_path = DriftPath()
         self.closures = []    # (old keyframe, new keyframe, new seen from old, score), accepted
         self.rejected = 0     # accepted, then taken out again as the optimised graph contradicts them
