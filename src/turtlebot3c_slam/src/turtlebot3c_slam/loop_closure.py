@@ -179,7 +179,7 @@ class LoopCloser:
             closure, window = self._search(keyframes, graph, newest)
             if closure is not None and keyframes_agree(keyframes[closure.old], keyframes[newest], closure.measured,
                                                        self.config, window):
-                self._consider(closure, keyframes, graph, optimize)
+                self.consider(closure, keyframes, graph, optimize)
 
     def _search(self, keyframes, graph, newest):
         """The newest keyframe matched against the old ones near it, and the search's half-width;
@@ -256,7 +256,7 @@ class LoopCloser:
                                         np.ones(inside.sum()), sums[inside] / counts[inside, None] - 0.5)
         return GridMatcher(field, low, resolution, levels=LEVELS)
 
-    def _consider(self, closure, keyframes, graph, optimize):
+    def consider(self, closure, keyframes, graph, optimize):
         """Close loops only on closures that agree: one match can be fooled by corridors that look
         alike, two from different places rarely agree on the same wrong correction. Accepted
         closures that the optimised graph then contradicts are taken out again."""
