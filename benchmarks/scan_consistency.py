@@ -54,7 +54,7 @@ class ScanSet:
 
     def pairs(self, i, j, pose):
         """Scan j laid into scan i's frame at `pose` (j seen from i): LineCloud.pairs."""
-        return self.clouds[i].pairs(transform_points(pose, self.clouds[j].points))
+        return self.clouds[i].pairs(transform_points(pose, self.clouds[j].points), pose)
 
 
 def consistency(scans, trajectory):

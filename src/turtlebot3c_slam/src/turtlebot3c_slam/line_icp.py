@@ -24,22 +24,32 @@ DAMPING = 1e-6 * np.eye(3)  # keeps a corridor's loose direction solvable
 
 
 class LineCloud:
-    """Target points (N, 2) with a k-d tree and a line normal per point."""
+    """Target points (N, 2) of a scan, in a frame whose origin is where it was taken from (the
+    robot's), with a k-d tree and a line normal per point, turned towards that origin."""
 
     def __init__(self, points):
         self.points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
         self.tree = cKDTree(self.points)
-        self.normals = _normals(self.points, self.tree)
+        normals = _normals(self.points, self.tree)
+        away = np.einsum("ij,ij->i", normals, self.points) > 0
+        self.normals = np.where(away[:, None], -normals, normals)
 
-    def pairs(self, laid):
-        """For points (M, 2) laid in the target's frame: which have a partner within PAIR_DISTANCE,
-        their partners' normals and the signed point-to-line distances; None with too few partners."""
+    def pairs(self, laid, viewpoint):
+        """For points (M, 2) laid in the target's frame, seen from `viewpoint` (x, y) there: which
+        have a partner within PAIR_DISTANCE, their partners' normals and the signed point-to-line
+        distances; None with too few partners. A point seen from the other side of its partner's
+        line has none: it lies on the far face of a wall (seen from the next room), a wall's
+        thickness off, and paired it would pull the scans together by as much."""
         if len(self.points) < NORMAL_NEIGHBOURS:
             return None
         # Bounded, the tree gives up on a point as soon as nothing can be that near: the same
         # partners, and on scipy 1.3 the refinement at the end takes 7 % less time.
         distance, partner = self.tree.query(laid, distance_upper_bound=PAIR_DISTANCE)
         near = distance < PAIR_DISTANCE
+        candidates = np.flatnonzero(near)
+        facing = np.einsum("ij,ij->i", np.asarray(viewpoint[:2], dtype=np.float64) - laid[candidates],
+                           self.normals[partner[candidates]]) > 0
+        near[candidates[~facing]] = False
         if np.count_nonzero(near) < MIN_PAIRS:
             return None
         partner = partner[near]
@@ -49,7 +59,7 @@ class LineCloud:
 
     def points_on_lines(self, points, pose):
         """How many of `points` (their own frame), laid at `pose`, lie on the target's lines."""
-        paired = self.pairs(transform_points(tuple(pose), points))
+        paired = self.pairs(transform_points(tuple(pose), points), pose)
         return 0 if paired is None else int((np.abs(paired[2]) < ON_LINE).sum())
 
 
@@ -76,7 +86,7 @@ def align(target, points, start, iterations=ITERATIONS, settled=SETTLED):
     pose = np.array(start, dtype=np.float64)
     hessian = None
     for _ in range(iterations):
-        paired = target.pairs(transform_points(tuple(pose), points))
+        paired = target.pairs(transform_points(tuple(pose), points), pose)
         if paired is None:
             return None
         near, normals, residuals = paired
