@@ -4,7 +4,8 @@ Each target point carries the normal of a line fitted through its nearest neighb
 source point pulls the pose only across that line, so a wall's points may slide along it: on
 laser scans of walls this converges from much farther off, and more precisely, than
 point-to-point ICP. Residuals are Huber-weighted, so a few points without a true partner
-(a person walking by, an open door) barely move the result.
+(a person walking by, an open door) barely move the result. A point pairs only with a line whose
+face its own scanner sees too, never with the far face of a wall.
 """
 import math
 
