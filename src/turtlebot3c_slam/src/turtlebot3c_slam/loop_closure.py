@@ -62,9 +62,8 @@ class LoopClosure:
     def agrees_with(self, other, config):
         """Whether both closures move the map alike (compared where the other was matched)."""
         here = other.at
-        mine, theirs = compose(self.correction, here), compose(other.correction, here)
-        return distance(mine, theirs) <= config.loop_agreement_xy and \
-            abs(wrap_angle(mine[2] - theirs[2])) <= config.loop_agreement_theta
+        return poses_within(compose(self.correction, here), compose(other.correction, here),
+                            config.loop_agreement_xy, config.loop_agreement_theta)
 
     def moves_map(self, config):
         return math.hypot(self.correction[0], self.correction[1]) > config.resolution * 0.5 or \
@@ -113,9 +112,13 @@ def nearest_view(poses, members, pose):
     return members[int(np.argmin(gaps))]
 
 
+def poses_within(a, b, xy, theta):
+    """Whether poses `a` and `b` lie within `xy` m and `theta` rad of each other."""
+    return distance(a, b) <= xy and abs(wrap_angle(a[2] - b[2])) <= theta
+
+
 def within_check(pose, measured, config):
-    return distance(pose, measured) <= config.loop_check_xy and \
-        abs(wrap_angle(pose[2] - measured[2])) <= config.loop_check_theta
+    return poses_within(pose, measured, config.loop_check_xy, config.loop_check_theta)
 
 
 def keyframes_agree(old, newest, measured, config, window=0.0, fit_share=ALIAS_FIT_SHARE):
