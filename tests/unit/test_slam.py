@@ -632,18 +632,17 @@ def test_a_loop_closure_between_keyframes_that_overlap_too_little_to_judge_is_re
 
 def straight_drive(keyframes=60, spacing=0.3):
     """Keyframes every `spacing` m along x, chained by their tracked steps as the SLAM chains them,
-    and a LoopCloser that saw them join: (config, graph, keyframes, loop closer)."""
+    and a LoopCloser that saw them join: (graph, keyframes, loop closer)."""
     config = SlamConfig()
     loops = LoopCloser(config)
     graph = PoseGraph()
+    odometry = diagonal_information(config.odometry_sigma_xy, config.odometry_sigma_theta)
     for k in range(keyframes):
         graph.add_node((spacing * k, 0.0, 0.0))
-    odometry = diagonal_information(config.odometry_sigma_xy, config.odometry_sigma_theta)
-    for k in range(1, keyframes):
-        graph.add_edge(k - 1, k, (spacing, 0.0, 0.0), odometry)
-    for k in range(keyframes):
+        if k:
+            graph.add_edge(k - 1, k, (spacing, 0.0, 0.0), odometry)
         loops.drift_path.extend(spacing if k else 0.0)
-    return config, graph, [Keyframe(k, None, None, spacing * k) for k in range(keyframes)], loops
+    return graph, [Keyframe(k, None, None, spacing * k) for k in range(keyframes)], loops
 
 
 def closure_moving_the_map(graph, old, newest, shift):
@@ -660,7 +659,7 @@ def loop_edges(graph):
 def test_a_loop_closure_is_taken_only_once_a_second_one_moves_the_map_alike_and_soon_enough():
     """Corridors that look alike fool one match; two from different places rarely agree on the
     same wrong correction. A closure left without a partner for loop_pending_keyframes is dropped."""
-    _, graph, keyframes, loops = straight_drive()
+    graph, keyframes, loops = straight_drive()
     loops.consider(closure_moving_the_map(graph, 0, 30, 0.15), keyframes, graph, graph.optimize)
     assert loop_edges(graph) == [] and loops.closures == []
     loops.consider(closure_moving_the_map(graph, 5, 32, -0.5), keyframes, graph, graph.optimize)  # disagrees
@@ -675,7 +674,7 @@ def test_a_loop_closure_is_taken_only_once_a_second_one_moves_the_map_alike_and_
 
 
 def test_agreeing_loop_closures_that_the_optimised_graph_still_contradicts_are_taken_out_again():
-    _, graph, keyframes, loops = straight_drive()
+    graph, keyframes, loops = straight_drive()
     before = graph.poses.copy()
     for old, newest in ((0, 30), (1, 32)):  # 3 m against 30 keyframes of tracking: not the same place
         loops.consider(closure_moving_the_map(graph, old, newest, 3.0), keyframes, graph, graph.optimize)
