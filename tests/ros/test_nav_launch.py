@@ -1,6 +1,7 @@
 """turtlebot3c_navigation.launch end to end, from the install space: the simulator, the
 model (bringup simulation:=true), the teleop mux and navigation on a map of the world."""
 import math
+import time
 
 import pytest
 
@@ -53,6 +54,50 @@ def test_goal_from_rviz_is_reached_through_the_mux(navigation):
     assert (end["x"], end["y"]) == (pytest.approx(goal[0]), pytest.approx(goal[1]))
     collisions = probe.wait_for_message("/sim/collisions", "std_msgs/UInt32", start=0)
     assert collisions["data"] == 0
+
+
+def test_a_goal_sent_as_soon_as_a_new_initial_pose_is_taken_is_planned_from_that_pose(navigation):
+    # AMCL dates map -> odom half a second ahead (transform_tolerance), as ROS amcl does; a lookup at
+    # the present time would still find the superseded transform for that half second.
+    probe = navigation.probe
+    probe.subscribe("/move_base/result", RESULT)
+    probe.subscribe("/move_base/plan", "nav_msgs/Path")
+    x, y, yaw = true_pose(probe)
+    # A first goal where the robot stands: the probe's first publish on a topic waits for subscribers.
+    start = probe.count("/move_base/result")
+    probe.publish("/move_base_simple/goal", "geometry_msgs/PoseStamped", pose_stamped(x, y, yaw))
+    probe.wait_for_message("/move_base/result", RESULT, timeout=60, start=start)
+    x, y, yaw = true_pose(probe)
+    ahead = (x + 0.4 * math.cos(yaw), y + 0.4 * math.sin(yaw), yaw)
+    behind = (x - 0.5 * math.cos(yaw), y - 0.5 * math.sin(yaw), yaw)
+
+    tight = [0.0] * 36
+    tight[0] = tight[7] = tight[35] = 0.05 ** 2
+
+    def set_initial_pose(pose):
+        """AMCL's estimate's distance from the robot: at rest, it updates once on a new pose."""
+        estimates = probe.count("/amcl_pose")
+        message = {"header": {"frame_id": "map"}, "pose": {"pose": pose_stamped(*pose)["pose"], "covariance": tight}}
+        probe.publish("/initialpose", "geometry_msgs/PoseWithCovarianceStamped", message)
+        estimate = probe.wait_for_message("/amcl_pose", "geometry_msgs/PoseWithCovarianceStamped", timeout=30,
+                                          start=estimates)
+        return distance_to(estimate, (x, y))
+
+    assert set_initial_pose(behind) > 0.3
+    time.sleep(1.0)  # AMCL's transforms dated ahead now all hold the pose behind
+    assert set_initial_pose((x, y, yaw)) < 0.1
+    start, plans_start = probe.count("/move_base/result"), probe.count("/move_base/plan")
+    probe.publish("/move_base_simple/goal", "geometry_msgs/PoseStamped", pose_stamped(*ahead))
+    first_plan = probe.wait_for_message("/move_base/plan", "nav_msgs/Path", timeout=30, start=plans_start)
+    origin = first_plan["poses"][0]["pose"]["position"]
+    assert math.hypot(origin["x"] - x, origin["y"] - y) < 0.15
+    result = probe.wait_for_message("/move_base/result", RESULT, timeout=60, start=start)
+    assert result["status"]["status"] == SUCCEEDED
+
+
+def distance_to(estimate, pose):
+    position = estimate["pose"]["pose"]["position"]
+    return math.hypot(position["x"] - pose[0], position["y"] - pose[1])
 
 
 def test_unreachable_goal_is_aborted_with_a_clear_status(navigation):
