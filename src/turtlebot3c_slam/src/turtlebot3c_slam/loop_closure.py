@@ -17,7 +17,9 @@ as the search reached), fit almost as well there. A good match is even then only
 corridors that look alike fool one match, so a closure is taken when a second one, within
 `loop_pending_keyframes`, moves the map the same way; both become robust edges and the graph is
 optimised, and an accepted closure the optimised graph still contradicts by more than
-`loop_residual_*` is taken out again.
+`loop_residual_*` is taken out again. Closures that move the map by less than half a cell only
+add their edges: optimising, and redrawing the map, waits for a later closure or for
+`optimize_deferred` (before a map is published or saved).
 
 The keyframes it reads need `travel` (m of path from the first scan), `points` (the down-sampled
 hits they match with) and `rays.hits` (every hit), all in the robot frame.
@@ -170,6 +172,7 @@ class LoopCloser:
         self.rejected = 0     # accepted, then taken out again as the optimised graph contradicts them
         self._pending = []    # closures waiting for one that agrees
         self._last_attempt = -(10 ** 9)
+        self.deferred = False  # the graph holds closures' edges it has not been optimised with
 
     def keyframe_added(self, keyframes, graph, optimize):
         """After the newest of `keyframes` joined `graph` (node per keyframe): look for a loop every
@@ -277,12 +280,21 @@ class LoopCloser:
             graph.add_edge(each.old, each.newest, each.measured, information, robust=True)
         if any(each.moves_map(config) for each in accepted):
             optimize()
+            self.deferred = False
             self._drop_contradicted(accepted, graph, optimize)
+        else:
+            self.deferred = True
         kept = [each for each in accepted if each.edge_in(graph)]
         self.closures.extend((each.old, each.newest, each.measured, each.score) for each in kept)
         travel = np.array([keyframe.travel for keyframe in keyframes])
         for each in kept:
             self.drift_path.shorten(travel, each)
+
+    def optimize_deferred(self, optimize):
+        """Optimise the graph with the closures that each moved the map too little to pay for it."""
+        if self.deferred:
+            optimize()
+            self.deferred = False
 
     def _drop_contradicted(self, accepted, graph, optimize):
         errors = graph.edge_errors()

@@ -526,6 +526,11 @@ class Slam:
         self.graph.optimize()
         self._keyframes_moved(before)
 
+    def optimize_deferred_closures(self):
+        """Before a map is published or saved: take in the loop closures that each moved the map
+        by less than half a cell (LoopCloser.optimize_deferred), which redraws it."""
+        self.loops.optimize_deferred(self._optimize)
+
     def refine(self):
         """At the end of a session: every keyframe where its scan agrees best with those of the
         keyframes near it (scan_refinement), on top of the graph's own edges; the maps follow."""
