@@ -217,12 +217,18 @@ def run_amcl(log, severity, seed=1, params=None, occupancy_map=None, offset=AMCL
     offset[0] m (diagonally) and offset[1] rad off the first reference pose; the map is the log's
     reference_map unless given. The filter's seed is `seed` too. Convergence is judged on every
     scan; the figures after it count the scans `judged` marks (None: all)."""
+    odometry = noisy_odometry(log.reference, SEVERITIES[severity], seed)
+    return run_amcl_with(log, odometry, seed, params, occupancy_map, offset, judged)
+
+
+def run_amcl_with(log, odometry, seed=1, params=None, occupancy_map=None, offset=AMCL_START_OFFSET, judged=None):
+    """AMCL over every scan of `log`, given `odometry` (N, 3), one pose per scan; the rest as
+    run_amcl."""
     from turtlebot3c_navigation.navigation_stack import Localizer, make_filter, map_layers
 
     occupancy_map = occupancy_map if occupancy_map is not None else reference_map(log)
     layers = map_layers(occupancy_map.data, occupancy_map.resolution, occupancy_map.origin)
     localizer = Localizer(make_filter(layers, params or amcl_params(), seed=seed))
-    odometry = noisy_odometry(log.reference, SEVERITIES[severity], seed)
     localizer.set_pose(amcl_start(log, offset), tuple(odometry[0]), np.diag(np.square(AMCL_INITIAL_STD)))
     angles = log.angle_min + np.arange(log.beams) * log.angle_increment
     poses, updates = np.zeros((len(log.stamps), 3)), 0

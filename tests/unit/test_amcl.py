@@ -40,7 +40,7 @@ def test_a_map_without_free_space_is_refused():
 
 def test_motion_model_moves_the_cloud_by_the_odometry_increment():
     occupied, info = open_grid()
-    alphas = dict(odom_alpha1=0.01, odom_alpha2=0.01, odom_alpha3=0.01, odom_alpha4=0.01)
+    alphas = dict(odom_alpha1=0.01, odom_alpha2=0.01, odom_alpha3=0.01, odom_alpha4=0.01, odom_slip_share=0.0)
     particle_filter = ParticleFilter(occupied, info, params=AmclParams(**alphas), seed=1)
     particle_filter.set_pose((1.0, 1.0, 0.0), np.diag([1e-6, 1e-6, 1e-6]))
     particle_filter.apply_motion((5.0, 5.0, math.pi / 2), (5.0, 6.0, math.pi / 2))  # 1 m forward, odom frame
@@ -49,6 +49,20 @@ def test_motion_model_moves_the_cloud_by_the_odometry_increment():
     assert mean[1] == pytest.approx(1.0, abs=0.02)
     assert particle_filter.particles[:, 0].std() == pytest.approx(math.sqrt(0.01), rel=0.1)  # alpha3 * trans^2
     assert particle_filter.particles[:, 1].std() == pytest.approx(math.sqrt(0.01), rel=0.1)  # rot1: alpha2 * trans^2
+
+
+def test_a_share_of_the_particles_takes_the_step_as_a_slip_from_none_of_it_to_three_times_it():
+    occupied, info = open_grid()
+    params = AmclParams(odom_alpha1=0.0, odom_alpha2=0.0, odom_alpha3=0.0, odom_alpha4=0.0, odom_slip_share=0.1)
+    particle_filter = ParticleFilter(occupied, info, params=params, seed=1)
+    particle_filter.set_pose((1.0, 1.0, 0.0), np.diag([1e-9, 1e-9, 1e-9]))
+    particle_filter.apply_motion((0.0, 0.0, 0.0), (0.5, 0.0, 0.0))
+    travelled = particle_filter.particles[:, 0] - 1.0
+    slipped = np.abs(travelled - 0.5) > 0.01
+    assert slipped.mean() == pytest.approx(0.1, abs=0.02)
+    assert travelled[slipped].min() >= 0.0 and travelled[slipped].max() <= 1.5
+    assert np.median(travelled[slipped]) == pytest.approx(0.75, abs=0.1)
+    assert np.allclose(particle_filter.particles[:, 1:], [1.0, 0.0], atol=1e-3)  # a slip does not turn or veer
 
 
 def turned_with_a_short_move(params, turn, sideways):
