@@ -46,10 +46,10 @@ class AmclParams(NamedTuple):
     # At each update this share of the particles takes the step as a wheel slip would leave it:
     # anywhere from none of the distance the odometry read to odom_slip_max times it. The noise
     # above does not reach a slip (a 1.00 m step read as 0.34), and along a corridor whose walls
-    # fit all along it no scan says the cloud fell behind:
-    # infinite-corridor, severe, odometry seed 2, it was 4.3 m behind when the corridor ended
-    # (0.614 m on average on the reference map; 0.043 with this). Where the scans pin the
-    # position the slipped particles fit worse and go at the next resampling. 0: none.
+    # fit all along it no scan says the cloud fell behind (infinite-corridor, severe, odometry
+    # seed 2: 4.3 m behind when the corridor ended, 0.614 m on average on the reference map;
+    # 0.043 with this). Where the scans pin the position the slipped particles fit worse and go
+    # at the next resampling. 0: none.
     odom_slip_share: float = 0.02
     odom_slip_max: float = 3.0
     laser_max_beams: int = 180
