@@ -70,19 +70,24 @@ def test_a_turn_on_the_spot_among_people_does_not_throw_the_filter_metres_off(se
     assert run.translation_errors[55:].max() < 1.0
 
 
+@pytest.fixture(scope="module")
+def corridor_with_slips():
+    """infinite-corridor's scans 1740-1830, their odometry (severe, seed 2) and the map around."""
+    log = load_log("infinite-corridor")
+    odometry = noisy_odometry(log.reference, SEVERITIES["severe"], 2)
+    corridor = slice(1740, 1830)
+    return log.part(corridor), odometry[corridor], reference_map(log.part(slice(1700, 1900)))
+
+
 @pytest.mark.parametrize("filter_seed", [2, 3])
-def test_a_cloud_that_slips_behind_along_a_corridor_catches_up_when_the_corridor_ends(filter_seed):
+def test_a_cloud_that_slips_behind_along_a_corridor_catches_up_when_the_corridor_ends(corridor_with_slips, filter_seed):
     # infinite-corridor, severe, odometry seed 2: along the corridor (scans 1770-1795) the wheels
     # slip twice (steps of 1.12 and 1.00 m read as 0.60 and 0.34) and the odometry reads 10 %
     # short. The walls fit all along the corridor, so nothing holds the cloud to the robot there
     # (it falls 1-2 m behind). With no particle taking a step as a slip, none was near the robot
     # when the corridor ended: these filter seeds stayed 1.2 m and 25 m off.
-    log = load_log("infinite-corridor")
-    odometry = noisy_odometry(log.reference, SEVERITIES["severe"], 2)
-    occupancy_map = reference_map(log.part(slice(1700, 1900)))
-    corridor = slice(1740, 1830)
-    run = run_amcl_with(log.part(corridor), odometry[corridor], filter_seed, occupancy_map=occupancy_map,
-                        offset=(0.0, 0.0))
+    log, odometry, occupancy_map = corridor_with_slips
+    run = run_amcl_with(log, odometry, filter_seed, occupancy_map=occupancy_map, offset=(0.0, 0.0))
     assert run.translation_errors[:30].max() < 0.3   # before the slips
     assert run.translation_errors[60:].max() < 0.2   # from scan 1800, past the corridor's end
 
