@@ -56,16 +56,20 @@ def test_on_a_5_hz_log_the_pose_between_filter_updates_stays_within_the_issue_ta
     assert run.held >= 0.95
 
 
-@pytest.mark.parametrize("seed", [1, 3])
-def test_a_turn_on_the_spot_among_people_does_not_throw_the_filter_metres_off(seed):
+@pytest.mark.parametrize("seed, held_out", [(1, False), (3, False), (2, True)])
+def test_a_turn_on_the_spot_among_people_does_not_throw_the_filter_metres_off(seed, held_out):
     # fhw, scans 55-65: the robot turns on the spot with something close all around it (median
     # range 0.8-0.9 m; at the reference pose 9-36 % of the beams end on a wall). Seed 1: while
     # the beams that end short counted as not fitting, the filter took itself for lost at scan
     # 62, spread its cloud along the path and settled 3.0 m off (now at most 0.69 m, at scans
     # 60-62). Seed 3: while those beams counted in the weighting, scan 59 turned the cloud 84
-    # degrees, and it was lost until scan 120, up to 49 m off (now at most 0.32 m).
+    # degrees, and it was lost until scan 120, up to 49 m off (now at most 0.32 m). Seed 2, on
+    # the map of the even scans: scan 59 fits it better turned 110 degrees than at the truth, and
+    # the filter turned and was lost for the rest of the log, 14 m off on average, until such a
+    # scan no longer weighed (poor_fit_max_jump).
     log = load_log("fhw")
-    run = run_amcl(log.head(130), "severe", seed=seed, occupancy_map=reference_map(log))
+    occupancy_map = reference_map(even_scans(log) if held_out else log)
+    run = run_amcl(log.head(130), "severe", seed=seed, occupancy_map=occupancy_map)
     assert run.converged_at == 0
     assert run.translation_errors[55:].max() < 1.0
 
