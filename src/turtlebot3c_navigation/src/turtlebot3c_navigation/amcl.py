@@ -451,7 +451,6 @@ class ParticleFilter:
             return
         converged = self.converged()
         prior_weights, prior_mean = self.weights, _weighted_pose_mean(self.particles, self.weights)
-        prior_spread = self.spread()
         if converged and self.params.skip_short_beams:
             kept = self._beams_near_obstacles(prior_mean, ranges, angles, sensor_offset)
             if kept.any():  # else the scan is all short: it weighs as a whole, as before
@@ -471,19 +470,20 @@ class ParticleFilter:
         mean_likelihood = math.exp((top + math.log(np.exp(expected - top).sum())) / ranges.size)
         self._track_likelihood(mean_likelihood)
         self.estimate = self._estimate()
-        if converged and self._jumped_to_a_poor_fit(prior_mean, prior_spread, *selected, sensor_offset):
+        if converged and self._jumped_to_a_poor_fit(prior_weights, prior_mean, *selected, sensor_offset):
             self.weights = prior_weights
             self.estimate = self._estimate()
             self.unweighted_scans += 1
 
-    def _jumped_to_a_poor_fit(self, prior_mean, prior_spread, ranges, angles, sensor_offset) -> bool:
+    def _jumped_to_a_poor_fit(self, prior_weights, prior_mean, ranges, angles, sensor_offset) -> bool:
         """Whether the estimate moved more than poor_fit_max_jump of the predicted cloud's
-        standard deviations from its mean, to where the scan fits poorly (see AmclParams)."""
+        standard deviations (the particles under `prior_weights`) from its mean, to where the scan
+        fits poorly (see AmclParams)."""
         limit = self.params.poor_fit_max_jump
         if limit <= 0.0:
             return False
         x, y, yaw = self.estimate.pose
-        position_std, heading_std = prior_spread
+        position_std, heading_std = _weighted_pose_spread(self.particles, prior_weights, prior_mean)
         jump = max(math.hypot(x - prior_mean[0], y - prior_mean[1]) / max(position_std, 1e-9),
                    abs(wrap_angle(yaw - prior_mean[2])) / max(heading_std, 1e-9))
         if jump <= limit:
@@ -580,11 +580,7 @@ class ParticleFilter:
 
     def spread(self) -> Tuple[float, float]:
         """Position (m) and heading (rad) standard deviations of the whole cloud."""
-        mean = _weighted_pose_mean(self.particles, self.weights)
-        diff = self.particles - np.asarray(mean)
-        diff[:, 2] = wrap_angle(diff[:, 2])
-        var = (diff ** 2 * self.weights[:, None]).sum(axis=0)
-        return math.sqrt(var[0] + var[1]), math.sqrt(var[2])
+        return _weighted_pose_spread(self.particles, self.weights, _weighted_pose_mean(self.particles, self.weights))
 
 
 def _fit_share(ends_on, passes_through) -> Optional[float]:
@@ -592,6 +588,15 @@ def _fit_share(ends_on, passes_through) -> Optional[float]:
     beam ends short, in the open: no evidence either way."""
     reaching = int(ends_on.sum() + passes_through.sum())
     return float(ends_on.sum()) / reaching if reaching else None
+
+
+def _weighted_pose_spread(poses, weights, mean) -> Tuple[float, float]:
+    """Position (m) and heading (rad) standard deviations of `poses` (weights summing to 1)
+    about `mean`."""
+    diff = poses - np.asarray(mean)
+    diff[:, 2] = wrap_angle(diff[:, 2])
+    var = (diff ** 2 * weights[:, None]).sum(axis=0)
+    return math.sqrt(var[0] + var[1]), math.sqrt(var[2])
 
 
 def _weighted_pose_mean(poses, weights) -> Tuple[float, float, float]:
