@@ -1,0 +1,66 @@
+"""Every relative link in the README and docs/ leads somewhere: the file exists, and a #fragment
+names a heading of it as GitHub anchors it. Figures move between docs/benchmarks.md and its
+history page as sessions go by, and a link left behind fails quietly on GitHub."""
+import re
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+DOCUMENTS = [REPO / "README.md"] + sorted((REPO / "docs").glob("*.md"))
+LINK = re.compile(r"\]\(([^)\s]+)\)")
+HEADING = re.compile(r"^#{1,6} (.+)$", re.MULTILINE)
+FENCE = re.compile(r"^```.*?^```", re.MULTILINE | re.DOTALL)
+
+
+def github_anchor(heading):
+    """The id GitHub gives a heading: lower case, punctuation dropped, spaces to hyphens."""
+    return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+
+
+def anchors(document):
+    """Every heading's anchor; a repeated heading gets -1, -2, ... as on GitHub."""
+    seen = {}
+    for heading in HEADING.findall(FENCE.sub("", document.read_text())):
+        anchor = github_anchor(heading)
+        count = seen.get(anchor, 0)
+        seen[anchor] = count + 1
+        if count:
+            seen[f"{anchor}-{count}"] = 1
+    return set(seen)
+
+
+def relative_links(document):
+    for target in LINK.findall(FENCE.sub("", document.read_text())):
+        if not re.match(r"[a-z]+:", target):
+            yield target
+
+
+def broken_links(document):
+    broken = []
+    for target in relative_links(document):
+        path, _, fragment = target.partition("#")
+        linked = (document.parent / path).resolve() if path else document
+        if not linked.exists():
+            broken.append(target)
+        elif fragment and linked.suffix == ".md" and fragment not in anchors(linked):
+            broken.append(target)
+    return broken
+
+
+def test_github_anchors_drop_punctuation_and_keep_hyphens():
+    assert github_anchor("Session 32: every severity, after the wall-face rule") == \
+        "session-32-every-severity-after-the-wall-face-rule"
+    assert github_anchor("2026-11-26 (session 25), whose the gap is: `benchmarks/slam_gaps`") == \
+        "2026-11-26-session-25-whose-the-gap-is-benchmarksslam_gaps"
+
+
+def test_a_missing_heading_or_file_is_reported(tmp_path):
+    document = tmp_path / "page.md"
+    document.write_text("# Title\n\n[here](#title) [gone](#nothing) [file](other.md) [web](https://x.org)\n")
+    assert broken_links(document) == ["#nothing", "other.md"]
+
+
+@pytest.mark.parametrize("document", DOCUMENTS, ids=lambda path: path.name)
+def test_every_relative_link_leads_to_a_file_and_heading_that_exist(document):
+    assert broken_links(document) == []
