@@ -81,9 +81,10 @@ def test_a_cloud_turned_onto_a_wrong_heading_in_the_crowd_is_found_again_from_wh
     # spread around that heading when the filter took itself for lost (scan 69), and never found
     # the robot again (4.1 m off on average over the log). The last estimate that tracked is
     # scan 58's, 0.2 m off.
-    log = load_log("fhw").head(130)
+    whole = load_log("fhw")
+    log = whole.head(130)
     odometry = noisy_odometry(log.reference, SEVERITIES["severe"], 1)
-    run = run_amcl_with(log, odometry, 110, occupancy_map=reference_map(load_log("fhw")))
+    run = run_amcl_with(log, odometry, 110, occupancy_map=reference_map(whole))
     assert run.translation_errors[60:69].min() > 0.4   # the turn took the cloud off
     assert run.translation_errors[75:].max() < 0.3
 
