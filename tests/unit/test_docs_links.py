@@ -1,6 +1,8 @@
 """Every relative link in the README and docs/ leads somewhere: the file exists, and a #fragment
 names a heading of it as GitHub anchors it. Figures move between docs/benchmarks.md and its
 history page as sessions go by, and a link left behind fails quietly on GitHub."""
+import collections
+import functools
 import re
 from pathlib import Path
 
@@ -18,16 +20,16 @@ def github_anchor(heading):
     return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
 
 
+@functools.lru_cache(maxsize=None)
 def anchors(document):
-    """Every heading's anchor; a repeated heading gets -1, -2, ... as on GitHub."""
-    seen = {}
+    """Every heading's anchor; a repeated heading gets -1, -2, ... as on GitHub. Read once per
+    document, however many links point into it."""
+    found, repeats = set(), collections.Counter()
     for heading in HEADING.findall(FENCE.sub("", document.read_text())):
         anchor = github_anchor(heading)
-        count = seen.get(anchor, 0)
-        seen[anchor] = count + 1
-        if count:
-            seen[f"{anchor}-{count}"] = 1
-    return set(seen)
+        found.add(f"{anchor}-{repeats[anchor]}" if repeats[anchor] else anchor)
+        repeats[anchor] += 1
+    return found
 
 
 def relative_links(document):
