@@ -1,6 +1,7 @@
 """Every relative link in the README and docs/ leads somewhere: the file exists, and a #fragment
 names a heading of it as GitHub anchors it. Figures move between docs/benchmarks.md and its
-history page as sessions go by, and a link left behind fails quietly on GitHub."""
+history page as sessions go by, and a link left behind fails quietly on GitHub. So does a table
+whose header row an edit dropped: GitHub then shows its rows as plain text."""
 import collections
 import functools
 import re
@@ -13,6 +14,7 @@ DOCUMENTS = [REPO / "README.md"] + sorted((REPO / "docs").glob("*.md"))
 LINK = re.compile(r"\]\(([^)\s]+)\)")
 HEADING = re.compile(r"^#{1,6} (.+)$", re.MULTILINE)
 FENCE = re.compile(r"^```.*?^```", re.MULTILINE | re.DOTALL)
+TABLE_SEPARATOR = re.compile(r"^\|(\s*:?-+:?\s*\|)+$")
 
 
 def github_anchor(heading):
@@ -50,6 +52,13 @@ def broken_links(document):
     return broken
 
 
+def headless_tables(document):
+    """Line numbers of table separators (|---|) with no header row above them."""
+    lines = FENCE.sub("", document.read_text()).splitlines()
+    return [number + 1 for number, line in enumerate(lines)
+            if TABLE_SEPARATOR.match(line) and (number == 0 or not lines[number - 1].startswith("|"))]
+
+
 def test_github_anchors_drop_punctuation_and_keep_hyphens():
     assert github_anchor("Session 32: every severity, after the wall-face rule") == \
         "session-32-every-severity-after-the-wall-face-rule"
@@ -66,3 +75,14 @@ def test_a_missing_heading_or_file_is_reported(tmp_path):
 @pytest.mark.parametrize("document", DOCUMENTS, ids=lambda path: path.name)
 def test_every_relative_link_leads_to_a_file_and_heading_that_exist(document):
     assert broken_links(document) == []
+
+
+def test_a_table_without_its_header_row_is_reported(tmp_path):
+    document = tmp_path / "page.md"
+    document.write_text("| a | b |\n|---|---|\n| 1 | 2 |\n\nMild:\n\n|---|---|\n| 3 | 4 |\n")
+    assert headless_tables(document) == [7]
+
+
+@pytest.mark.parametrize("document", DOCUMENTS, ids=lambda path: path.name)
+def test_every_table_has_a_header_row(document):
+    assert headless_tables(document) == []
