@@ -73,7 +73,9 @@ class AmclParams(NamedTuple):
     # out. A beam that ends a little short is as likely the cloud's fault: after a wheel slip
     # the cloud lags, and the beams ahead end short of the wall they hit by the slip, yet they
     # alone say how far the robot went (acapulco, severe, seed 3, scan 829: a 0.99 m step read
-    # as 0.32; with every short beam left out the cloud fell 1.5 m behind).
+    # as 0.32; with every short beam left out the cloud fell 1.5 m behind). 0.3, 0.5 and 0.7 m
+    # were measured on every log and severity: each mends some rows of infinite-corridor and
+    # breaks others, and 0.5 m loses one (docs/benchmarks.md, session 36).
     short_beam_min_gap: float = 1.0
     # Beams are not independent: scaling the summed log-likelihood down keeps the filter
     # from collapsing onto one hypothesis after one scan (1.0 is the plain product of
