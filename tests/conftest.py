@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from testkit import ros_harness, scheduling
+from testkit import ros_harness
 
 # A test needs a ROS master when it asks for one of these fixtures, is marked `needs_master` (one
 # that starts its master by itself), or tests the snap through snapsim (the snap's own roscore app).
@@ -35,13 +35,6 @@ def pytest_collection_modifyitems(config, items):
     keep = [item for item in items if runs_on_this_python(item) == (lane == "master")]
     config.hook.pytest_deselected(items=[item for item in items if item not in keep])
     items[:] = keep
-
-
-@pytest.hookimpl(optionalhook=True)
-def pytest_xdist_make_scheduler(config, log):
-    if config.getvalue("dist") == "loadfile":
-        return scheduling.LongestModulesFirst(config, log)
-    return None
 
 
 def runs_on_this_python(item):
