@@ -4,7 +4,7 @@ import os
 import sys
 import time
 
-from . import config, environment, hooks, journal, lint, services, snapctl, snapd
+from . import config, environment, hooks, journal, lint, services, snapd
 from . import state as state_module
 from .layout import Layout
 from .state import SnapError
@@ -73,8 +73,6 @@ def parser():
     check = commands.add_parser("lint", help="review-tools-like checks of an installed snap's prime tree")
     check.add_argument("snap")
 
-    ctl = commands.add_parser("snapctl", help="(internal) snapctl for apps and hooks")
-    ctl.add_argument("args", nargs=argparse.REMAINDER)
     supervisor = commands.add_parser("_supervise", help="(internal) a service's supervisor")
     supervisor.add_argument("snap")
     supervisor.add_argument("app")
@@ -199,10 +197,6 @@ def _lint(layout, args):
     return 1 if problems else 0
 
 
-def _snapctl(layout, args):
-    return snapctl.main(layout, args.args)
-
-
 def _supervise(layout, args):
     supervise(layout, args.snap, args.app)
 
@@ -211,5 +205,5 @@ COMMANDS = {
     "install": _install, "remove": _remove, "set": _set, "get": _get, "unset": _unset,
     "start": _service_action, "stop": _service_action, "restart": _service_action,
     "services": _services, "logs": _logs, "connections": _connections, "connect": _connect,
-    "disconnect": _disconnect, "run": _run, "lint": _lint, "snapctl": _snapctl, "_supervise": _supervise,
+    "disconnect": _disconnect, "run": _run, "lint": _lint, "_supervise": _supervise,
 }

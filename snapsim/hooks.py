@@ -5,13 +5,12 @@ it is committed when the hook succeeds and dropped when it fails (so a
 rejected `snap set` changes nothing). `snapctl start/stop/restart` in a hook
 are queued and performed after the hook has succeeded.
 """
-import json
-import os
 import secrets
 import subprocess
 
 from . import config, environment, services
 from . import state as state_module
+from .contexts import context_path, read_context, write_context
 from .state import SnapError
 
 HOOK_TIMEOUTS = {"configure": 300.0, "default-configure": 300.0}
@@ -23,21 +22,6 @@ TASK_TITLES = {
     "pre-refresh": 'Run pre-refresh hook of "{snap}" snap if present',
     "post-refresh": 'Run post-refresh hook of "{snap}" snap if present',
 }
-
-
-def context_path(layout, cookie):
-    return layout.contexts_dir / f"{cookie}.json"
-
-
-def read_context(layout, cookie):
-    return json.loads(context_path(layout, cookie).read_text())
-
-
-def write_context(layout, cookie, context):
-    path = context_path(layout, cookie)
-    temporary = path.with_suffix(".tmp")
-    temporary.write_text(json.dumps(context))
-    os.replace(temporary, path)
 
 
 def has_hook(snap_info, hook):

@@ -11,8 +11,10 @@ from . import state as state_module
 from .state import SnapError
 from .supervisor import DEFAULT_STOP_TIMEOUT, is_zombie, parse_duration
 
-# snapsim itself, as its own processes (supervisors, hooks' snapctl) run it: with the interpreter running this.
+# snapsim itself and its snapctl, as its own processes (supervisors, hooks and apps) run them: with the
+# interpreter running this.
 COMMAND = (sys.executable, "-m", "snapsim")
+SNAPCTL_COMMAND = (sys.executable, "-m", "snapsim.snapctl")
 
 
 def status(layout, snap, app):

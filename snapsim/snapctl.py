@@ -8,8 +8,9 @@ import argparse
 import os
 import sys
 
-from . import config, hooks, services
+from . import config, contexts
 from . import state as state_module
+from .layout import Layout
 from .state import SnapError
 
 NON_ROOT_ALLOWED = {"get", "services", "is-connected"}
@@ -18,8 +19,8 @@ NON_ROOT_ALLOWED = {"get", "services", "is-connected"}
 def find_context(layout):
     """(snap, hook context cookie or None) of the caller."""
     cookie = os.environ.get("SNAP_COOKIE") or os.environ.get("SNAP_CONTEXT") or ""
-    if cookie and hooks.context_path(layout, cookie).exists():
-        return hooks.read_context(layout, cookie)["snap"], cookie
+    if cookie and contexts.context_path(layout, cookie).exists():
+        return contexts.read_context(layout, cookie)["snap"], cookie
     for name, snap in state_module.read(layout)["snaps"].items():
         if cookie and snap.get("cookie") == cookie:
             return name, None
@@ -65,7 +66,7 @@ def main(layout, argv):
             raise SnapError("get which option?")
         for key in args.keys:
             config.parse_key(key)
-        values = hooks.read_context(layout, cookie)["config"] if cookie else _committed(layout, snap)
+        values = contexts.read_context(layout, cookie)["config"] if cookie else _committed(layout, snap)
         sys.stdout.write(config.snapctl_get_output(values, args.keys, typed=args.typed, document=args.document))
         return 0
 
@@ -77,22 +78,25 @@ def main(layout, argv):
             patch = [(config.parse_key(key), None) for key in args.keys]
         with state_module.locked(layout) as current:
             if cookie:
-                context = hooks.read_context(layout, cookie)
+                context = contexts.read_context(layout, cookie)
                 context["config"] = config.apply_patch(context["config"], patch)
-                hooks.write_context(layout, cookie, context)
+                contexts.write_context(layout, cookie, context)
             else:
                 snap_state = current["snaps"][snap]
                 snap_state["config"] = config.purge_nulls(config.apply_patch(snap_state["config"], patch))
         return 0
+
+    # Imported here, not above: services brings in the supervisor and YAML, and most calls are a `get`.
+    from . import services
 
     if args.command in ("start", "stop", "restart"):
         flags = {"enable": getattr(args, "enable", False), "disable": getattr(args, "disable", False)}
         targets = services.resolve(layout, args.services, own_snap=snap)
         if cookie:
             with state_module.locked(layout):
-                context = hooks.read_context(layout, cookie)
+                context = contexts.read_context(layout, cookie)
                 context["queued"].append([args.command, args.services, flags])
-                hooks.write_context(layout, cookie, context)
+                contexts.write_context(layout, cookie, context)
         else:
             services.perform(layout, args.command, targets, **flags)
         return 0
@@ -110,3 +114,17 @@ def main(layout, argv):
 
 def _committed(layout, snap):
     return state_module.read(layout)["snaps"][snap]["config"]
+
+
+def command_line(argv):
+    """`python3 -m snapsim.snapctl ROOT ARGS...`, the base snap's snapctl (snapd.ensure_system writes it)."""
+    root, *arguments = argv
+    try:
+        return main(Layout(root), arguments)
+    except SnapError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(command_line(sys.argv[1:]))

@@ -28,8 +28,8 @@ def ensure_system(layout):
     snapctl = layout.base_bin / "snapctl"
     if not snapctl.exists():
         snapctl.parent.mkdir(parents=True, exist_ok=True)
-        command = " ".join(shlex.quote(str(word)) for word in (*services.COMMAND, "--root", layout.root))
-        snapctl.write_text(f'#!/bin/sh\n# snapctl of this snapsim system\nexec {command} snapctl "$@"\n')
+        command = " ".join(shlex.quote(str(word)) for word in (*services.SNAPCTL_COMMAND, layout.root))
+        snapctl.write_text(f'#!/bin/sh\n# snapctl of this snapsim system\nexec {command} "$@"\n')
         snapctl.chmod(0o755)
     layout.state_dir.mkdir(parents=True, exist_ok=True)
 
