@@ -24,12 +24,14 @@ AUTO_CONNECT = {"network", "network-bind", "home", "opengl", "x11", "wayland", "
 
 
 def ensure_system(layout):
-    """The base snap's snapctl, pointing back at this snapsim root."""
+    """The base snap's snapctl, pointing back at this snapsim root; rewritten when an earlier snapsim
+    wrote another (so an install mends a system whose snapctl called a command snapsim no longer has)."""
     snapctl = layout.base_bin / "snapctl"
-    if not snapctl.exists():
+    command = " ".join(shlex.quote(str(word)) for word in (*services.SNAPCTL_COMMAND, layout.root))
+    script = f'#!/bin/sh\n# snapctl of this snapsim system\nexec {command} "$@"\n'
+    if not snapctl.exists() or snapctl.read_text() != script:
         snapctl.parent.mkdir(parents=True, exist_ok=True)
-        command = " ".join(shlex.quote(str(word)) for word in (*services.SNAPCTL_COMMAND, layout.root))
-        snapctl.write_text(f'#!/bin/sh\n# snapctl of this snapsim system\nexec {command} "$@"\n')
+        snapctl.write_text(script)
         snapctl.chmod(0o755)
     layout.state_dir.mkdir(parents=True, exist_ok=True)
 
