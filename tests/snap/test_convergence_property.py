@@ -15,7 +15,7 @@ import threading
 import time
 
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
 from testkit.ros_harness import wait_until
@@ -118,7 +118,9 @@ def converge(system, master):
 
 
 @pytest.mark.timeout(max(600, SEQUENCES * 240))
-@settings(max_examples=SEQUENCES, deadline=None, database=None,
+# No shrinking: each sequence is seconds of ROS on one robot, which the failing sequence left changed,
+# so a shrunk rerun would not start where the failure did; a failure is reported as drawn.
+@settings(max_examples=SEQUENCES, deadline=None, database=None, phases=[Phase.explicit, Phase.generate],
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(sequence=st.lists(ACTIONS, min_size=1, max_size=5))
 def test_any_sequence_of_owner_actions_and_master_crashes_converges_to_a_working_robot(robot, sequence):
