@@ -298,6 +298,37 @@ def test_along_a_featureless_corridor_odometry_that_reads_short_is_corrected_by_
     assert tracked[0] == pytest.approx(12.0, abs=0.35)   # odometry alone: 10.8 m
 
 
+def corridor_keyframes_with_one_wrong_step(walk_xy):
+    """A Slam that mapped 4 m of a featureless corridor with exact odometry, then had one tracked
+    step between keyframes put 5 cm too long along the corridor (a wrong match where the walls
+    cannot say how far the robot went), the keyframes after it moved with it; and that step's index."""
+    corridor = corridor_world([], 30.0)
+    slam = Slam(SlamConfig(odometry_walk_xy=walk_xy))
+    for step in range(41):
+        x = 0.1 * step
+        slam.add_scan(0.2 * step, corridor.raycast(x, 0.0, LDS_ANGLES, 3.5), LDS_GEOMETRY, (x, 0.0, 0.0))
+    wrong = len(slam.keyframes) // 2
+    edge = next(edge for edge in slam.graph.edges if (edge.i, edge.j) == (wrong - 1, wrong))
+    edge.measurement = (edge.measurement[0] + 0.05,) + edge.measurement[1:]
+    slam.graph.poses[wrong:, 0] += 0.05
+    return slam, wrong
+
+
+def step_along(slam, index):
+    return relative(tuple(slam.graph.poses[index - 1]), tuple(slam.graph.poses[index]))[0]
+
+
+def test_the_refinement_keeps_odometrys_step_where_the_scans_leave_the_keyframes_loose():
+    slam, wrong = corridor_keyframes_with_one_wrong_step(SlamConfig.DEFAULTS["odometry_walk_xy"])
+    odometry_step = slam.keyframes[wrong].odom[0] - slam.keyframes[wrong - 1].odom[0]
+    slam.refine()
+    assert step_along(slam, wrong) == pytest.approx(odometry_step, abs=0.01)
+    # Odometry weighed as if it erred by metres: the wrong step stands, the walls cannot mend it.
+    slam, wrong = corridor_keyframes_with_one_wrong_step(100.0)
+    slam.refine()
+    assert step_along(slam, wrong) == pytest.approx(odometry_step + 0.05, abs=0.01)
+
+
 def test_turning_on_the_spot_teaches_how_far_odometry_turns_and_nothing_about_distance():
     """Odometry whose turns read 30 % short (a track width off): a turn on the spot moves its x
     and y not at all, and still teaches the turn scale, by which the next turns are predicted."""
@@ -524,7 +555,7 @@ def room_corner_points(pose):
 
 def keyframe_of_hits(hits, travel, geometry):
     """A keyframe whose scan hit `hits` (robot frame), matching one point in four."""
-    return Keyframe(travel, ScanRays(geometry, hits, np.zeros((0, 2))), hits[::4], travel)
+    return Keyframe(travel, ScanRays(geometry, hits, np.zeros((0, 2))), hits[::4], travel, (travel, 0.0, 0.0))
 
 
 def keyframe_seeing_room_corner(pose, travel):
@@ -642,7 +673,7 @@ def straight_drive(keyframes=60, spacing=0.3):
         if k:
             graph.add_edge(k - 1, k, (spacing, 0.0, 0.0), odometry)
         loops.drift_path.extend(spacing if k else 0.0)
-    return graph, [Keyframe(k, None, None, spacing * k) for k in range(keyframes)], loops
+    return graph, [Keyframe(k, None, None, spacing * k, (spacing * k, 0.0, 0.0)) for k in range(keyframes)], loops
 
 
 def closure_moving_the_map(graph, old, newest, shift):

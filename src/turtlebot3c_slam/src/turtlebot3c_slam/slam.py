@@ -40,6 +40,7 @@ How it works:
 - The map frame is the odometry frame at the first scan (map -> odom starts as identity).
 """
 import collections
+import copy
 import math
 
 import numpy as np
@@ -95,6 +96,10 @@ class SlamConfig:
         # m of path after which a step's evidence counts half in learning how odometry errs
         # (odometry_calibration), by which each prediction is corrected
         ("odometry_scale_memory", 20.0),
+        # m and rad per sqrt(m + rad) of path: how odometry, so corrected, still errs (a random
+        # walk). The refinement at the end weighs its steps between keyframes by it.
+        ("odometry_walk_xy", 0.01),
+        ("odometry_walk_theta", 0.005),
         ("match_window_max_xy", 1.0),     # m
         ("match_window_max_theta", 0.7),  # rad
         # Below: keep odometry, and search wider next scan. A blinded LIDAR's garbage scores
@@ -164,6 +169,10 @@ class SlamConfig:
         return collections.OrderedDict((name, getattr(self, name)) for name in self.DEFAULTS)
 
 
+# m + rad: the least path an odometry step is weighed over, so a robot standing still does not pin its keyframes
+WALK_FLOOR = 0.01
+
+
 class MapRebuild:
     """The map redrawn from keyframes at given poses (see Slam.map_rebuild)."""
 
@@ -222,11 +231,12 @@ def positions_towards(start, end, spacing):
 
 
 class Keyframe:
-    def __init__(self, stamp, rays, points, travel):
+    def __init__(self, stamp, rays, points, travel, odom):
         self.stamp = stamp
         self.rays = rays        # ScanRays in the robot frame, to rebuild maps
         self.points = points    # down-sampled hits in the robot frame, to match
         self.travel = travel    # m of path from the first scan
+        self.odom = odom        # the odometry's pose (odom frame) at the keyframe's scan
 
 
 class Slam:
@@ -432,7 +442,7 @@ class Slam:
 
     def _add_keyframe(self, stamp, rays, points):
         index = self.graph.add_node(self.pose)
-        self.keyframes.append(Keyframe(stamp, rays, points, self.travel))
+        self.keyframes.append(Keyframe(stamp, rays, points, self.travel, self.odom))
         if index > 0:
             previous = tuple(self.graph.poses[index - 1])
             self.graph.add_edge(index - 1, index, relative(previous, self.pose), diagonal_information(
@@ -533,13 +543,30 @@ class Slam:
 
     def refine(self):
         """At the end of a session: every keyframe where its scan agrees best with those of the
-        keyframes near it (scan_refinement), on top of the graph's own edges; the maps follow."""
+        keyframes near it (scan_refinement), on top of the graph's own edges and odometry's steps
+        between keyframes; the maps follow."""
         if len(self.keyframes) < 2:
             return
         before = tuple(self.graph.poses[-1])
         clouds = [scan_refinement.scan_cloud(keyframe.rays.hits) for keyframe in self.keyframes]
-        self.graph.poses = scan_refinement.refine(self.graph, clouds)
+        self.graph.poses = scan_refinement.refine(self._graph_with_odometry(), clouds)
         self._keyframes_moved(before)
+
+    def _graph_with_odometry(self):
+        """A copy of the graph with odometry's step between each two keyframes as an edge, corrected
+        as the calibration learnt by the end says, weighed by the random walk odometry keeps, and
+        robust (a slip). Where a corridor leaves the scans loose along it, or a turn a tracking
+        cell's worth of heading, odometry holds the steps together: on the real logs the relations
+        error fell on 32 of 33 runs (e.g. orebro, mild: 0.510 to 0.476 degrees)."""
+        graph = copy.deepcopy(self.graph)
+        config, calibration = self.config, self.odometry_calibration
+        for index in range(1, len(self.keyframes)):
+            step = calibration.corrected(relative(self.keyframes[index - 1].odom, self.keyframes[index].odom))
+            path = math.hypot(step[0], step[1]) + abs(step[2]) + WALK_FLOOR
+            information = diagonal_information(config.odometry_walk_xy * math.sqrt(path),
+                                               config.odometry_walk_theta * math.sqrt(path))
+            graph.add_edge(index - 1, index, step, information, robust=True)
+        return graph
 
     def _keyframes_moved(self, newest_before):
         """After the graph moved its keyframes: the pose follows the newest, the maps are redrawn."""
