@@ -329,6 +329,16 @@ def test_the_refinement_keeps_odometrys_step_where_the_scans_leave_the_keyframes
     assert step_along(slam, wrong) == pytest.approx(odometry_step + 0.05, abs=0.01)
 
 
+def test_an_odometry_step_further_off_than_tracking_could_search_does_not_pull_the_refinement():
+    """Odometry reset between two keyframes (5 m, a driver restarted): that step is no measurement."""
+    slam, wrong = corridor_keyframes_with_one_wrong_step(SlamConfig.DEFAULTS["odometry_walk_xy"])
+    tracked = step_along(slam, wrong)
+    for keyframe in slam.keyframes[wrong:]:
+        keyframe.odom = (keyframe.odom[0] + 5.0,) + keyframe.odom[1:]
+    slam.refine()
+    assert step_along(slam, wrong) == pytest.approx(tracked, abs=0.005)
+
+
 def test_turning_on_the_spot_teaches_how_far_odometry_turns_and_nothing_about_distance():
     """Odometry whose turns read 30 % short (a track width off): a turn on the spot moves its x
     and y not at all, and still teaches the turn scale, by which the next turns are predicted."""

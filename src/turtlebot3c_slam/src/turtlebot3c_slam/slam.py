@@ -557,11 +557,16 @@ class Slam:
         as the calibration learnt by the end says, weighed by the random walk odometry keeps, and
         robust (a slip). Where a corridor leaves the scans loose along it, or a turn a tracking
         cell's worth of heading, odometry holds the steps together: on the Radish logs the relations
-        error fell on 32 of 33 runs (infinite-corridor, mild: 0.068 to 0.064 m; docs/benchmarks.md)."""
+        error fell on 32 of 33 runs (infinite-corridor, mild: 0.068 to 0.064 m; docs/benchmarks.md).
+        A step further from the tracked one than tracking's widest window is no measurement (the
+        odometry was reset, a wheel spun in place): it is left out, as even robust it would pull."""
         graph = copy.deepcopy(self.graph)
         config, calibration = self.config, self.odometry_calibration
         for index in range(1, len(self.keyframes)):
             step = calibration.corrected(relative(self.keyframes[index - 1].odom, self.keyframes[index].odom))
+            off = relative(relative(tuple(graph.poses[index - 1]), tuple(graph.poses[index])), step)
+            if math.hypot(off[0], off[1]) > config.match_window_max_xy or abs(off[2]) > config.match_window_max_theta:
+                continue
             path = math.hypot(step[0], step[1]) + abs(step[2]) + WALK_FLOOR
             information = diagonal_information(config.odometry_walk_xy * math.sqrt(path),
                                                config.odometry_walk_theta * math.sqrt(path))
