@@ -21,6 +21,8 @@ import math
 
 import numpy as np
 
+from .se2 import cos_sin
+
 SAMPLE_STEP = 0.02  # s between the odometry poses sampled over a scan (odometry comes at 30-50 Hz)
 
 
@@ -81,7 +83,7 @@ def deskew_points(points, motion):
     if motion is None:
         return points
     motion = np.asarray(motion, dtype=np.float64).reshape(-1, 3)
-    c, s = np.cos(motion[:, 2]), np.sin(motion[:, 2])
+    c, s = cos_sin(motion[:, 2])
     return np.column_stack((motion[:, 0] + c * points[:, 0] - s * points[:, 1],
                             motion[:, 1] + s * points[:, 0] + c * points[:, 1]))
 
@@ -101,7 +103,8 @@ def deskew_ranges(ranges, angles, sensor_offset, motion):
     directions = syaw + angles[returned]
     ends = np.column_stack((sx + ranges[returned] * np.cos(directions), sy + ranges[returned] * np.sin(directions)))
     moved = deskew_points(ends, np.asarray(motion, dtype=np.float64)[returned]) - (sx, sy)
+    moved_x, moved_y = np.ascontiguousarray(moved.T)  # for arctan2, as se2.cos_sin says
     new_ranges, new_angles = ranges.copy(), angles.copy()
-    new_ranges[returned] = np.hypot(moved[:, 0], moved[:, 1])
-    new_angles[returned] = np.arctan2(moved[:, 1], moved[:, 0]) - syaw
+    new_ranges[returned] = np.hypot(moved_x, moved_y)
+    new_angles[returned] = np.arctan2(moved_y, moved_x) - syaw
     return new_ranges, new_angles

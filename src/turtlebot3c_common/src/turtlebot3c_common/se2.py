@@ -13,6 +13,15 @@ def wrap_angle(angle):
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
+def cos_sin(angles):
+    """Cosines and sines of an array of angles, taken on a contiguous copy. NumPy's AVX-512 loops
+    (NumPy 1.22 on) give a strided array, a column of poses, other last bits than a contiguous one,
+    and which depends on where the array lies in memory: a SLAM run would then not repeat itself
+    (a closure taken or not on a last bit). A contiguous array gets the same bits wherever it lies."""
+    angles = np.ascontiguousarray(angles, dtype=np.float64)
+    return np.cos(angles), np.sin(angles)
+
+
 def compose(a, b):
     """Pose b, given in a's frame, expressed in a's parent frame (a ⊕ b)."""
     ax, ay, ayaw = a

@@ -20,7 +20,7 @@ from typing import NamedTuple, Optional, Tuple
 
 import numpy as np
 
-from turtlebot3c_common.se2 import compose, relative, wrap_angle
+from turtlebot3c_common.se2 import compose, cos_sin, relative, wrap_angle
 
 from .grid_info import GridInfo
 from .likelihood_field import LikelihoodField
@@ -623,5 +623,6 @@ def _weighted_pose_mean(poses, weights) -> Tuple[float, float, float]:
     w = weights / weights.sum()
     x = float((poses[:, 0] * w).sum())
     y = float((poses[:, 1] * w).sum())
-    yaw = math.atan2(float((np.sin(poses[:, 2]) * w).sum()), float((np.cos(poses[:, 2]) * w).sum()))
+    cos, sin = cos_sin(poses[:, 2])
+    yaw = math.atan2(float((sin * w).sum()), float((cos * w).sum()))
     return (x, y, yaw)

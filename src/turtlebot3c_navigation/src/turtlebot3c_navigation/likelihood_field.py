@@ -10,6 +10,8 @@ import math
 
 import numpy as np
 
+from turtlebot3c_common.se2 import cos_sin
+
 from .grid_info import GridInfo
 
 
@@ -142,5 +144,5 @@ def _rays(x, y, yaw, angles, sensor_offset):
     """The sensor's position (x, y) and each beam's direction in the map frame, from the robot's
     pose: one pose, or a column of them (N x 1 arrays) against a row of angles."""
     sx, sy, syaw = sensor_offset
-    cos, sin = np.cos(yaw), np.sin(yaw)
+    cos, sin = cos_sin(yaw)
     return x + cos * sx - sin * sy, y + sin * sx + cos * sy, yaw + syaw + np.asarray(angles)

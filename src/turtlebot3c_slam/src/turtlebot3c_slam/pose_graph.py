@@ -12,7 +12,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.linalg import spsolve
 
-from turtlebot3c_common.se2 import wrap_angle
+from turtlebot3c_common.se2 import cos_sin, wrap_angle
 
 
 def diagonal_information(sigma_xy, sigma_theta):
@@ -52,8 +52,8 @@ class PoseGraph:
     def _errors_and_jacobians(self, i, j, measurement):
         """Errors (E, 3) of all edges and their Jacobians (E, 3, 3) by node i and node j."""
         xi, xj = self.poses[i], self.poses[j]
-        ci, si = np.cos(xi[:, 2]), np.sin(xi[:, 2])
-        cz, sz = np.cos(measurement[:, 2]), np.sin(measurement[:, 2])
+        ci, si = cos_sin(xi[:, 2])
+        cz, sz = cos_sin(measurement[:, 2])
         dx, dy = xj[:, 0] - xi[:, 0], xj[:, 1] - xi[:, 1]
         # j in i's frame, then its difference to the measurement in the measurement's frame
         lx, ly = ci * dx + si * dy, -si * dx + ci * dy
