@@ -395,11 +395,13 @@ BENCH_INSIDE = "TURTLEBOT3C_BENCH_INSIDE"
 
 
 # What a benchmark measuring CPU time and figures needs: one core (BLAS would use both and count
-# their time), and numpy's sin/cos without AVX-512. numpy 1.22+ computes them there in SIMD
-# code whose last bit depends on how an array sits in memory, which differs from run to run;
-# a SLAM's discrete choices (a loop closure taken or not) amplify that into different maps from
-# the same inputs (freiburg-079: 194 to 206 closures). The snap's numpy 1.17 has no such code.
-# An older numpy ignores the variable.
+# their time), and numpy's sin/cos without AVX-512. numpy 1.22+ computes them there in SIMD code
+# whose last bits differ from the scalar code's, so that a SLAM's discrete choices (a loop closure
+# taken or not) give another map from the same inputs on a machine with AVX-512 than on one
+# without (freiburg-079, severe: 194 against 202 closures). Off, the figures are the same on
+# both. The snap's numpy 1.17 has no such code, and ignores the variable.
+# (That code once made runs on one machine differ too, when a strided column's last bits
+# depended on its address: se2.cos_sin now takes them on contiguous copies.)
 SINGLE_CORE_REPRODUCIBLE = {
     "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
     "NPY_DISABLE_CPU_FEATURES": "AVX512F AVX512CD AVX512_SKX AVX512_CLX AVX512_CNL AVX512_ICL",
