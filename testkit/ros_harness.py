@@ -400,8 +400,8 @@ BENCH_INSIDE = "TURTLEBOT3C_BENCH_INSIDE"
 # taken or not) give another map from the same inputs on a machine with AVX-512 than on one
 # without (freiburg-079, severe: 194 against 202 closures). Off, the figures are the same on
 # both. The snap's numpy 1.17 has no such code, and ignores the variable.
-# (That code once made runs on one machine differ too, when a strided column's last bits
-# depended on its address: se2.cos_sin now takes them on contiguous copies.)
+# On one machine too, that code gives a strided column last bits that depend on its address,
+# which made runs differ; our code takes them on contiguous copies (se2.cos_sin).
 SINGLE_CORE_REPRODUCIBLE = {
     "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
     "NPY_DISABLE_CPU_FEATURES": "AVX512F AVX512CD AVX512_SKX AVX512_CLX AVX512_CNL AVX512_ICL",
