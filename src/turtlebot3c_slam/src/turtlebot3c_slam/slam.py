@@ -48,7 +48,7 @@ import numpy as np
 from turtlebot3c_common.se2 import compose, distance, inverse, relative
 
 from . import scan_refinement
-from .loop_closure import LoopCloser
+from .loop_closure import LoopCloser, poses_within
 from .occupancy_grid import LogOddsGrid
 from .odometry_calibration import OdometryCalibration, firmness_along_heading
 from .pose_graph import PoseGraph, diagonal_information
@@ -565,8 +565,8 @@ class Slam:
         config, calibration = self.config, self.odometry_calibration
         for index in range(1, len(self.keyframes)):
             step = calibration.corrected(relative(self.keyframes[index - 1].odom, self.keyframes[index].odom))
-            off = relative(relative(tuple(graph.poses[index - 1]), tuple(graph.poses[index])), step)
-            if math.hypot(off[0], off[1]) > config.match_window_max_xy or abs(off[2]) > config.match_window_max_theta:
+            tracked = relative(tuple(graph.poses[index - 1]), tuple(graph.poses[index]))
+            if not poses_within(tracked, step, config.match_window_max_xy, config.match_window_max_theta):
                 continue
             path = math.hypot(step[0], step[1]) + abs(step[2]) + WALK_FLOOR
             information = diagonal_information(config.odometry_walk_xy * math.sqrt(path),
