@@ -552,7 +552,6 @@ def test_loop_edge_pulls_a_drifted_square_back_together():
     assert error < np.hypot(*(np.array(drifted[3][:2]) - truth[3][:2])) / 2
 
 
-
 def test_the_pose_graph_repeats_itself_bit_for_bit_wherever_its_arrays_lie_in_memory():
     """NumPy's AVX-512 sines of a strided column get last bits that depend on its address; one
     such bit once decided a loop closure, so two runs of one log gave different maps."""
@@ -575,6 +574,7 @@ def test_the_pose_graph_repeats_itself_bit_for_bit_wherever_its_arrays_lie_in_me
         graph.optimize()
         results.add(graph.poses.tobytes())
     assert len(results) == 1
+
 
 # --- configuration ----------------------------------------------------------------------------
 
