@@ -63,6 +63,11 @@ def distance(a, b):
     return math.hypot(a[0] - b[0], a[1] - b[1])
 
 
+def poses_within(a, b, xy, theta):
+    """Whether poses `a` and `b` lie within `xy` m and `theta` rad of each other."""
+    return distance(a, b) <= xy and abs(wrap_angle(a[2] - b[2])) <= theta
+
+
 def yaw_to_quaternion(yaw):
     """(x, y, z, w) of a rotation by yaw about z."""
     return (0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))

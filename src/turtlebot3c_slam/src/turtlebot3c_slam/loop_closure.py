@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from turtlebot3c_common.se2 import compose, distance, inverse, relative, transform_points, wrap_angle
+from turtlebot3c_common.se2 import compose, inverse, poses_within, relative, transform_points, wrap_angle
 
 from .line_icp import LineCloud, align
 from .occupancy_grid import hit_cells
@@ -112,11 +112,6 @@ def nearest_view(poses, members, pose):
     gaps = np.hypot(chosen[:, 0] - pose[0], chosen[:, 1] - pose[1]) + \
         VIEW_TURN_WEIGHT * np.abs(wrap_angle(chosen[:, 2] - pose[2]))
     return members[int(np.argmin(gaps))]
-
-
-def poses_within(a, b, xy, theta):
-    """Whether poses `a` and `b` lie within `xy` m and `theta` rad of each other."""
-    return distance(a, b) <= xy and abs(wrap_angle(a[2] - b[2])) <= theta
 
 
 def within_check(pose, measured, config):

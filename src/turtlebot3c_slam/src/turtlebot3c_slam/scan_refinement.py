@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from turtlebot3c_common.se2 import relative, wrap_angle
+from turtlebot3c_common.se2 import poses_within, relative, wrap_angle
 
 from . import line_icp
 from .pose_graph import PoseGraph
@@ -107,5 +107,4 @@ def chain(poses, information=FIRST_ESTIMATE_INFORMATION):
 def within_reach(start, matched):
     """Whether a match lies within MAX_SHIFT and MAX_TURN of where it started: the refinement
     takes no match farther away."""
-    shift = relative(tuple(start), tuple(matched))
-    return math.hypot(shift[0], shift[1]) <= MAX_SHIFT and abs(shift[2]) <= MAX_TURN
+    return poses_within(start, matched, MAX_SHIFT, MAX_TURN)

@@ -45,10 +45,10 @@ import math
 
 import numpy as np
 
-from turtlebot3c_common.se2 import compose, distance, inverse, relative
+from turtlebot3c_common.se2 import compose, distance, inverse, poses_within, relative
 
 from . import scan_refinement
-from .loop_closure import LoopCloser, poses_within
+from .loop_closure import LoopCloser
 from .occupancy_grid import LogOddsGrid
 from .odometry_calibration import OdometryCalibration, firmness_along_heading
 from .pose_graph import PoseGraph, diagonal_information
