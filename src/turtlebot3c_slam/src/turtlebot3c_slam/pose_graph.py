@@ -14,6 +14,11 @@ from scipy.sparse.linalg import spsolve
 
 from turtlebot3c_common.se2 import cos_sin, wrap_angle
 
+# The Hessian is symmetric, so its LU keeps least fill-in under a minimum-degree ordering of
+# A^T + A; SciPy's default (COLAMD) orders for A^T A. On freiburg-079's refinement graph (1335
+# nodes) each solve takes half the time, for the same poses but for the last bits.
+FILL_REDUCING_ORDER = "MMD_AT_PLUS_A"
+
 
 def diagonal_information(sigma_xy, sigma_theta):
     """The information matrix of a measurement with independent errors of these sigmas (m, rad)."""
@@ -121,7 +126,7 @@ class PoseGraph:
             gradient = np.zeros(size)
             np.add.at(gradient, (3 * i)[:, None] + block, np.einsum("eab,eb->ea", at_w, error))
             np.add.at(gradient, (3 * j)[:, None] + block, np.einsum("eab,eb->ea", bt_w, error))
-            step = spsolve(hessian, -gradient).reshape(-1, 3)
+            step = spsolve(hessian, -gradient, permc_spec=FILL_REDUCING_ORDER).reshape(-1, 3)
             self.poses += step
             self.poses[:, 2] = wrap_angle(self.poses[:, 2])
             if np.abs(step).max() < tolerance:
