@@ -28,7 +28,7 @@ from turtlebot3c_slam.loop_closure import (
 )
 from turtlebot3c_slam.occupancy_grid import CellUpdate, LogOddsGrid, trace_scan
 from turtlebot3c_slam.pose_graph import PoseGraph, diagonal_information
-from turtlebot3c_slam.scan_matcher import GridMatcher, sparse_likelihood_field
+from turtlebot3c_slam.scan_matcher import GridMatcher, _block_maxima, sparse_likelihood_field
 from turtlebot3c_slam.slam import (
     Keyframe,
     RedrawBudget,
@@ -896,3 +896,17 @@ def test_any_scan_geometry_maps_the_house_half_circle_lidar_with_long_range_and_
     assert agreement >= 0.95
     assert precision >= 0.95
     assert ate <= 0.05
+
+
+@pytest.mark.parametrize("half", [1, 2, 4, 8])
+def test_the_maxima_grids_taken_over_the_fields_bits_are_its_values_maxima(half):
+    rng = np.random.default_rng(half)
+    field = rng.random((37, 53)).astype(np.float32)
+    field[rng.random(field.shape) < 0.7] = 0.0
+    wider = field.copy()
+    wider[:, :-half] = np.maximum(field[:, :-half], field[:, half:])
+    expected = wider.copy()
+    expected[:-half] = np.maximum(wider[:-half], wider[half:])
+    maxima = _block_maxima(field, half)
+    assert maxima.dtype == np.float32
+    assert np.array_equal(maxima, expected)

@@ -87,8 +87,9 @@ class MatchResult:
 
 
 class GridMatcher:
-    """Matches point sets (robot frame) against one likelihood field; `low` is the lattice (i, j)
-    of field[0, 0] and `levels` the number of coarser maxima grids for branch and bound."""
+    """Matches point sets (robot frame) against one likelihood field (values in [0, 1]); `low`
+    is the lattice (i, j) of field[0, 0] and `levels` the number of coarser maxima grids for
+    branch and bound."""
 
     def __init__(self, field, low, resolution, levels=4, max_candidates=4000):
         self.resolution = float(resolution)
@@ -295,11 +296,23 @@ class GridMatcher:
 
 def _block_maxima(grid, half):
     """Each cell's maximum with the cells `half` to its right, above, and both: from blocks of
-    half x half cells, blocks twice as wide (the last `half` columns and rows keep their own)."""
-    wider = np.empty_like(grid)
-    np.maximum(grid[:, :-half], grid[:, half:], out=wider[:, :-half])
-    wider[:, -half:] = grid[:, -half:]
-    taller = np.empty_like(wider)
-    np.maximum(wider[:-half], wider[half:], out=taller[:-half])
-    taller[-half:] = wider[-half:]
-    return taller
+    half x half cells, blocks twice as wide (the last `half` columns and rows keep their own).
+
+    The maxima are taken over the flat array viewed as int32: a field's values are never
+    negative, and such floats order as their bits do, so the maxima are the same. core20's
+    numpy takes float32 maxima row by row five times slower than int32 ones over one flat run,
+    and these grids took a sixth of its SLAM's time."""
+    bits = grid.view(np.int32)
+    wider = _maxima_with_later(bits, half)
+    wider[:, -half:] = bits[:, -half:]  # flat, a row's last cells met the next row's first
+    return _maxima_with_later(wider, half * grid.shape[1]).view(np.float32)
+
+
+def _maxima_with_later(array, shift):
+    """Each element's maximum with the one `shift` places later in the flat (C-ordered) array;
+    the last `shift` keep their own."""
+    flat = array.reshape(-1)
+    result = np.empty_like(flat)
+    np.maximum(flat[:-shift], flat[shift:], out=result[:-shift])
+    result[-shift:] = flat[-shift:]
+    return result.reshape(array.shape)
