@@ -472,6 +472,20 @@ def test_prior_keeps_the_predicted_position_along_a_featureless_corridor():
     assert result.pose[1] == pytest.approx(0.0, abs=0.026)
 
 
+@pytest.mark.parametrize("half", [1, 2, 4, 8])
+def test_the_maxima_grids_taken_over_the_fields_bits_are_its_values_maxima(half):
+    rng = np.random.default_rng(half)
+    field = rng.random((37, 53)).astype(np.float32)
+    field[rng.random(field.shape) < 0.7] = 0.0
+    wider = field.copy()
+    wider[:, :-half] = np.maximum(field[:, :-half], field[:, half:])
+    expected = wider.copy()
+    expected[:-half] = np.maximum(wider[:-half], wider[half:])
+    maxima = _block_maxima(field, half)
+    assert maxima.dtype == np.float32
+    assert np.array_equal(maxima, expected)
+
+
 def room_rays():
     """A 4 x 3 m room with a pillar, seen from the origin: 360 beams."""
     world = load_world_from_text()
@@ -896,17 +910,3 @@ def test_any_scan_geometry_maps_the_house_half_circle_lidar_with_long_range_and_
     assert agreement >= 0.95
     assert precision >= 0.95
     assert ate <= 0.05
-
-
-@pytest.mark.parametrize("half", [1, 2, 4, 8])
-def test_the_maxima_grids_taken_over_the_fields_bits_are_its_values_maxima(half):
-    rng = np.random.default_rng(half)
-    field = rng.random((37, 53)).astype(np.float32)
-    field[rng.random(field.shape) < 0.7] = 0.0
-    wider = field.copy()
-    wider[:, :-half] = np.maximum(field[:, :-half], field[:, half:])
-    expected = wider.copy()
-    expected[:-half] = np.maximum(wider[:-half], wider[half:])
-    maxima = _block_maxima(field, half)
-    assert maxima.dtype == np.float32
-    assert np.array_equal(maxima, expected)
