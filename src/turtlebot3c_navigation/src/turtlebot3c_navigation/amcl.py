@@ -75,7 +75,7 @@ class AmclParams(NamedTuple):
     # alone say how far the robot went (acapulco, severe, seed 3, scan 829: a 0.99 m step read
     # as 0.32; with every short beam left out the cloud fell 1.5 m behind). 0.3, 0.5 and 0.7 m
     # were measured on every log and severity: each mends some rows of infinite-corridor and
-    # breaks others, and 0.5 m loses one (docs/benchmarks.md, session 36).
+    # breaks others, and 0.5 m loses one (docs/slam-real-data-history.md, session 36).
     short_beam_min_gap: float = 1.0
     # Beams are not independent: scaling the summed log-likelihood down keeps the filter
     # from collapsing onto one hypothesis after one scan (1.0 is the plain product of
