@@ -884,7 +884,9 @@ def test_house_loop_closes_without_a_doubled_wall(house_run):
 def test_the_house_map_takes_in_the_closures_that_waited_before_it_is_published(house_run):
     slam, world, truth, _ = house_run
     slam = copy.deepcopy(slam)
-    assert slam.loops.deferred
+    # Which closures are left waiting at the end is decided by the run's last bits: a change to
+    # how the SLAM computes may leave none, and this test then needs another run that does.
+    assert slam.loops.deferred, "the house run no longer ends with loop closures waiting"
     slam.optimize_deferred_closures()
     assert slam.map_outdated
     _, precision, _ = map_quality(slam, world, truth)
