@@ -72,7 +72,9 @@ def consistency(scans, trajectory):
 def most_consistent_trajectory(scans, reference):
     """The trajectory that agrees best with the scans, found from the reference (see the module's doc)."""
     start = reseated(scans, reference)
-    return scan_refinement.refine(scan_refinement.chain(start), scans.clouds, line_icp.SETTLED)
+    # Each ICP match settled to line_icp's finest step, its pairs looked up afresh at every
+    # iteration: a measure that the refinement's shortcuts for speed do not move.
+    return scan_refinement.refine(scan_refinement.chain(start), scans.clouds, line_icp.SETTLED, keep_pairs=0.0)
 
 
 def reseated(scans, reference):

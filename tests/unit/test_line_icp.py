@@ -1,11 +1,13 @@
-"""line_icp's line normals, whose closed form stands in for an eigen-decomposition."""
+"""line_icp: the line normals, whose closed form stands in for an eigen-decomposition, and the alignment."""
+import copy
 import math
 
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from turtlebot3c_slam.line_icp import line_normals
+from turtlebot3c_common.se2 import inverse, transform_points
+from turtlebot3c_slam.line_icp import LineCloud, align, line_normals
 
 
 @pytest.mark.parametrize("heading", [0.0, 0.3, math.pi / 4, math.pi / 2, 2.0, -math.pi / 2, math.pi])
@@ -30,3 +32,37 @@ def test_the_normals_are_the_scatters_least_eigenvectors():
 def test_points_all_in_one_place_get_no_normal():
     normals = line_normals(np.tile((1.5, 0.5), (6, 1)))
     assert np.array_equal(normals, np.zeros((6, 2)))
+
+
+def room_walls(first, spacing, noise, rng):
+    """Points along the walls of a 4 x 3 m room around the origin, one every `spacing` m from `first`."""
+    corners = np.array([(-2.0, -1.5), (2.0, -1.5), (2.0, 1.5), (-2.0, 1.5), (-2.0, -1.5)])
+    walls = []
+    for start, end in zip(corners[:-1], corners[1:]):
+        along = np.arange(first, np.hypot(*(end - start)), spacing) / np.hypot(*(end - start))
+        walls.append(start + along[:, None] * (end - start))
+    points = np.concatenate(walls)
+    return points + rng.normal(0.0, noise, points.shape)
+
+
+def aligned_counting_lookups(target, points, keep_pairs):
+    """align's pose from the origin, and how many times it looked the points' partners up."""
+    lookups = []
+    counting = copy.copy(target)
+    counting.pairs = lambda laid, viewpoint: lookups.append(laid) or target.pairs(laid, viewpoint)
+    pose, _ = align(counting, points, (0.0, 0.0, 0.0), keep_pairs=keep_pairs)
+    return pose, len(lookups)
+
+
+def test_a_scan_is_aligned_on_the_walls_it_saw_and_keeping_its_pairs_spares_lookups():
+    rng = np.random.default_rng(9)
+    target = LineCloud(room_walls(0.0, 0.02, 0.002, rng))
+    truth = (0.12, -0.08, 0.06)
+    # The room as seen from `truth`: other points along the same walls, in that pose's frame.
+    points = transform_points(inverse(truth), room_walls(0.011, 0.03, 0.002, rng))
+    afresh, afresh_lookups = aligned_counting_lookups(target, points, keep_pairs=0.0)
+    kept, kept_lookups = aligned_counting_lookups(target, points, keep_pairs=5e-3)
+    for pose in (afresh, kept):
+        assert pose[:2] == pytest.approx(truth[:2], abs=2e-3)
+        assert pose[2] == pytest.approx(truth[2], abs=1e-3)
+    assert kept_lookups < afresh_lookups  # 3 against 7

@@ -36,10 +36,11 @@ class LineCloud:
 
     def pairs(self, laid, viewpoint):
         """For points (M, 2) laid in the target's frame, seen from `viewpoint` (x, y) there: which
-        have a partner within PAIR_DISTANCE, their partners' normals and the signed point-to-line
-        distances; None with too few partners. A point seen from the other side of its partner's
-        line has none: it lies on the far face of a wall (seen from the next room), a wall's
-        thickness off, and paired it would pull the scans together by as much."""
+        have a partner within PAIR_DISTANCE, their partners' normals, the signed point-to-line
+        distances and the partners' indices; None with too few partners. A point seen from the
+        other side of its partner's line has none: it lies on the far face of a wall (seen from
+        the next room), a wall's thickness off, and paired it would pull the scans together by
+        as much."""
         if len(self.points) < NORMAL_NEIGHBOURS:
             return None
         # Bounded, the tree gives up on a point as soon as nothing can be that near: the same
@@ -54,8 +55,11 @@ class LineCloud:
             return None
         partner = partner[near]
         normals = self.normals[partner]
-        residuals = np.einsum("ij,ij->i", laid[near] - self.points[partner], normals)
-        return near, normals, residuals
+        return near, normals, self.distances(laid[near], partner, normals), partner
+
+    def distances(self, points, partner, normals):
+        """Signed distances of points (M, 2), laid in the target's frame, from their partners' lines."""
+        return np.einsum("ij,ij->i", points - self.points[partner], normals)
 
     def points_on_lines(self, points, pose):
         """How many of `points` (their own frame), laid at `pose`, lie on the target's lines."""
@@ -92,19 +96,25 @@ def _least_spread(x, y):
     return normals / np.maximum(np.hypot(normals[:, 0], normals[:, 1]), np.finfo(np.float64).tiny)[:, None]
 
 
-def align(target, points, start, iterations=ITERATIONS, settled=SETTLED):
+def align(target, points, start, iterations=ITERATIONS, settled=SETTLED, keep_pairs=0.0):
     """The pose (x, y, theta) of `points` (their own frame) in `target`'s frame that lays them on
     its lines, from `start`, and the Gauss-Newton Hessian there (in the target's frame, per m^2 of
     residual); None when too few points find a partner. It stops after a step smaller than
-    `settled` (m and rad)."""
+    `settled` (m and rad). After a step smaller than `keep_pairs` (m and rad) the points keep
+    their partners rather than look them up again: so small a step changes few of them, and the
+    lookup is most of an iteration's time."""
     pose = np.array(start, dtype=np.float64)
     hessian = None
+    kept = False
     for _ in range(iterations):
         laid = transform_points(tuple(pose), points)
-        paired = target.pairs(laid, pose)
-        if paired is None:
-            return None
-        near, normals, residuals = paired
+        if not kept:
+            paired = target.pairs(laid, pose)
+            if paired is None:
+                return None
+            near, normals, residuals, partner = paired
+        else:
+            residuals = target.distances(laid[near], partner, normals)
         # As theta grows a point moves at right angles to its lever from the pose: (-ly, lx).
         lever = laid[near] - pose[:2]
         jacobian = np.empty((len(normals), 3))
@@ -116,4 +126,5 @@ def align(target, points, start, iterations=ITERATIONS, settled=SETTLED):
         pose += step
         if np.abs(step).max() < settled:
             break
+        kept = np.abs(step).max() < keep_pairs
     return tuple(float(value) for value in pose), hessian
