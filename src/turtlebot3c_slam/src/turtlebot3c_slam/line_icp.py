@@ -124,7 +124,8 @@ def align(target, points, start, iterations=ITERATIONS, settled=SETTLED, keep_pa
         hessian = weighted @ jacobian
         step = -np.linalg.solve(hessian + DAMPING, weighted @ residuals)
         pose += step
-        if np.abs(step).max() < settled:
+        size = np.abs(step).max()
+        if size < settled:
             break
-        kept = np.abs(step).max() < keep_pairs
+        kept = size < keep_pairs
     return tuple(float(value) for value in pose), hessian
