@@ -176,3 +176,27 @@ def test_missing_or_corrupt_bag_fails_clearly(ros_env, tmp_path):
     (tmp_path / "junk.bag").write_bytes(b"not a bag at all")
     result = remap(ros_env, tmp_path / "junk.bag")
     assert result.returncode == 1 and "cannot read bag" in result.stderr
+
+
+@pytest.mark.parametrize("problem, expected", [
+    ("damaged bag", "it is damaged or not a ROS 1 bag"),
+    ("config not YAML", "is not valid YAML: expected ',' or ']'"),
+    ("config not text", "is not a text file of SLAM parameters"),
+    ("config a folder", "cannot read SLAM parameters from"),
+])
+def test_a_damaged_bag_or_a_broken_config_fails_with_one_line(ros_env, recorded, tmp_path, problem, expected):
+    folder, _, _ = recorded
+    bag, config = folder / "session.bag", tmp_path / "slam.yaml"
+    if problem == "damaged bag":  # frame names that are not UTF-8: the records parse, the messages do not
+        bag = tmp_path / "damaged.bag"
+        bag.write_bytes((folder / "session.bag").read_bytes().replace(b"base_footprint", b"\xff" * 14))
+        config.write_text("resolution: 0.05\n")
+    elif problem == "config a folder":
+        config = tmp_path
+    else:
+        config.write_bytes({"config not YAML": b"resolution: [0.05\n", "config not text": b"\xff\xfe\x00"}[problem])
+    result = remap(ros_env, bag, "--config", config, "-o", tmp_path / "map")
+    lines = result.stderr.strip().splitlines()
+    assert result.returncode == 1 and len(lines) == 1 and lines[0].startswith("remap_bag: "), result.stderr
+    assert expected in lines[0]
+    assert not (tmp_path / "map.yaml").exists()

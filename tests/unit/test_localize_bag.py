@@ -113,6 +113,13 @@ def write_bag(path, log, odometry, with_tf=True, scans=True):
                 bag.write(scan_topic, stamp, bag.scan(stamp, log, log.ranges[index]), SCAN)
 
 
+def damaged(good, path):
+    """A copy of the bag `good` whose frame names are bytes that are not UTF-8: its records still
+    parse, its messages do not (rosbags then raises whatever its parser trips over)."""
+    path.write_bytes(good.read_bytes().replace(b"base_footprint", b"\xff" * len(b"base_footprint")))
+    return path
+
+
 def base_poses(log):
     """Where base_footprint is when the laser (MOUNT ahead of it) is at the log's reference poses."""
     return np.array([compose(tuple(pose), inverse(MOUNT)) for pose in log.reference])
@@ -192,11 +199,15 @@ def test_the_initial_pose_defaults_to_the_config_then_the_map_origin(recorded, t
 @pytest.mark.parametrize("problem, expected", [
     ("missing bag", "cannot read bag"),
     ("corrupt bag", "cannot read bag"),
+    ("damaged bag", "it is damaged or not a ROS 1 bag"),
     ("no scans", "bag has no scans"),
     ("other scan topic", "has no /lidar topic (its topics: /odom, /scan, /tf, /tf_static)"),
     ("missing map", "cannot read map file"),
     ("bad map", "lacks the key(s)"),
     ("unknown parameter", "unknown amcl parameters: laser_max_rang"),
+    ("config not YAML", "is not valid YAML: expected ',' or ']'"),
+    ("config not text", "is not a text file of amcl parameters"),
+    ("config pose not a number", "initial_pose_x must be a finite number, got 'one'"),
     ("bad pose", "initial pose must be X,Y,YAW"),
 ])
 def test_bad_input_fails_with_one_line_and_no_traceback(recorded, tmp_path, problem, expected):
@@ -207,6 +218,8 @@ def test_bad_input_fails_with_one_line_and_no_traceback(recorded, tmp_path, prob
     elif problem == "corrupt bag":
         bag = tmp_path / "junk.bag"
         bag.write_bytes(b"not a bag at all")
+    elif problem == "damaged bag":
+        bag = damaged(folder / "aces.bag", tmp_path / "damaged.bag")
     elif problem == "no scans":
         bag = tmp_path / "empty.bag"
         write_bag(bag, log.head(5), odometry, scans=False)
@@ -220,6 +233,10 @@ def test_bad_input_fails_with_one_line_and_no_traceback(recorded, tmp_path, prob
     elif problem == "unknown parameter":
         config = tmp_path / "typo.yaml"
         config.write_text("laser_max_rang: 30.0\n")
+    elif problem.startswith("config"):
+        config = tmp_path / "config.yaml"
+        config.write_bytes({"config not YAML": b"laser_max_range: [30\n", "config not text": b"\xff\xfe\x00",
+                            "config pose not a number": b"initial_pose_x: one\n"}[problem])
     elif problem == "bad pose":
         arguments = ["--initial-pose", "1,2"]
     result = run_tool(bag, map_yaml, "--config", config, *arguments)

@@ -7,6 +7,7 @@ found in. OdometrySeries interpolates odometry at any time within it, as tf does
 """
 import bisect
 import math
+import struct
 
 import numpy as np
 
@@ -46,7 +47,8 @@ def read_bag(path, scan_topic="/scan", odom_topic="/odom", odom_frame="odom", ba
     The frame tree keeps frame_value(transform) of each transform: a planar pose by default.
     """
     from rosbags.rosbag1 import Reader, ReaderError
-    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+    from rosbags.serde import SerdeError
+    from rosbags.typesys import Stores, TypesysError, get_types_from_msg, get_typestore
 
     typestore = get_typestore(Stores.ROS1_NOETIC)
     inputs = BagInputs()
@@ -74,6 +76,13 @@ def read_bag(path, scan_topic="/scan", odom_topic="/odom", odom_frame="odom", ba
         raise BagError(f"cannot read bag {path}: no such file") from error
     except IsADirectoryError as error:
         raise BagError(f"cannot read bag {path}: it is a directory") from error
+    # rosbags trusts a bag's lengths, offsets and texts: a damaged one trips its parser wherever
+    # the damage is (a missing chunk's KeyError, a short record's struct.error or AssertionError,
+    # a text that is not UTF-8, a message or type definition that does not parse).
+    except (SerdeError, TypesysError, AssertionError, KeyError, IndexError, struct.error, UnicodeDecodeError,
+            EOFError) as error:
+        reason = type(error).__name__ + (f": {str(error).splitlines()[0]}" if str(error) else "")
+        raise BagError(f"cannot read bag {path}: it is damaged or not a ROS 1 bag ({reason})") from error
     return inputs
 
 

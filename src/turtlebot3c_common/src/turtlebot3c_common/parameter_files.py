@@ -1,0 +1,25 @@
+"""A node's parameters from a YAML file named on a command line (remap_bag --config, localize_bag
+--config). No rospy."""
+import yaml
+
+
+def load_parameter_file(path, what):
+    """The mapping of parameters in the YAML file at `path` (an empty file: none); ValueError with
+    one line saying what is wrong with it otherwise. `what` names the parameters ("SLAM parameters")."""
+    try:
+        with open(path, encoding="utf-8") as stream:
+            values = yaml.safe_load(stream)
+    except OSError as error:
+        raise ValueError(f"cannot read {what} from {path}: {error.strerror or error}") from None
+    except UnicodeDecodeError:
+        raise ValueError(f"{path} is not a text file of {what}") from None
+    except yaml.MarkedYAMLError as error:
+        where = f" at line {error.problem_mark.line + 1}" if error.problem_mark else ""
+        raise ValueError(f"{path} is not valid YAML: {error.problem}{where}") from None
+    except yaml.YAMLError as error:
+        raise ValueError(f"{path} is not valid YAML: {str(error).splitlines()[0]}") from None
+    if values is None:
+        return {}
+    if not isinstance(values, dict):
+        raise ValueError(f"{path} is not a YAML mapping of {what}")
+    return values
