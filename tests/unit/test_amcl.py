@@ -104,6 +104,18 @@ def filter_at_the_open_grid_centre():
     return particle_filter, angles, 1.9 / np.maximum(np.abs(np.cos(angles)), np.abs(np.sin(angles)))
 
 
+def test_a_scan_without_a_usable_beam_still_moves_the_estimate_with_the_odometry():
+    """A LIDAR that sees nothing for a scan (all beams beyond laser_max_range, or none at all):
+    the pose published stayed where the robot had been, and a recording's two empty scans put
+    localize_bag's poses 1 and 2 m behind."""
+    particle_filter, angles, ranges = filter_at_the_open_grid_centre()
+    localizer = Localizer(particle_filter)
+    assert localizer.update((0.0, 0.0, 0.0), ranges, angles, 0.0, (0.0, 0.0, 0.0))
+    for odom, blind in (((0.3, 0.0, 0.0), np.full(90, np.inf)), ((0.6, 0.0, 0.0), np.zeros(0))):
+        assert localizer.update(odom, blind, angles[:len(blind)], 0.0, (0.0, 0.0, 0.0))
+        assert pose_error(localizer.pose(odom), (2.0 + odom[0], 2.0, 0.0))[0] < 0.05
+
+
 def test_a_lost_filter_first_spreads_its_cloud_around_the_last_fitted_estimate_then_goes_global():
     # Beams of 3.4 m in every direction fit from nowhere in the open grid: a scan that does not fit.
     particle_filter, angles, fitting = filter_at_the_open_grid_centre()

@@ -468,6 +468,10 @@ class ParticleFilter:
         selected = self.select_beams(ranges, angles, range_min)
         ranges, angles = selected
         if ranges.size == 0:
+            # No beam weighs the cloud, but the motion before moved it: the estimate follows it.
+            # Left as it was, the pose published stayed where the robot had been for as long as
+            # its LIDAR saw nothing (a recording's empty scans put it 1 and 2 m behind).
+            self.estimate = self._estimate()
             return
         converged = self.converged()
         prior_weights, prior_mean = self.weights, _weighted_pose_mean(self.particles, self.weights)
