@@ -16,11 +16,12 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from testkit.real_data import AMCL_PARAMS, load_log, reference_map
 from turtlebot3c_common.bag_inputs import read_trajectory
 from turtlebot3c_common.se2 import compose, inverse, wrap_angle
-from turtlebot3c_maps.map_files import save_map
+from turtlebot3c_maps.map_files import load_map, save_map
 from turtlebot3c_sim.odometry_error import SEVERITIES, noisy_odometry
 
 REPO = Path(__file__).resolve().parents[2]
 SCRIPT = REPO / "src" / "turtlebot3c_navigation" / "nodes" / "localize_bag"
+REMAP_SCRIPT = REPO / "src" / "turtlebot3c_slam" / "nodes" / "remap_bag"
 SCAN, ODOM, TF = "sensor_msgs/msg/LaserScan", "nav_msgs/msg/Odometry", "tf2_msgs/msg/TFMessage"
 SCANS = 60
 MAP_RANGE = 30.0          # m: a smaller map than the benchmark's, so the test stays quick
@@ -28,9 +29,9 @@ MOUNT = (0.2, 0.0, 0.0)   # the laser ahead of base_footprint, as on many robots
 START = 1000.0
 
 
-def run_tool(*args):
+def run_tool(*args, script=SCRIPT):
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
-    return subprocess.run([sys.executable, str(SCRIPT)] + [str(a) for a in args], env=env, capture_output=True,
+    return subprocess.run([sys.executable, str(script)] + [str(a) for a in args], env=env, capture_output=True,
                           text=True, timeout=300)
 
 
@@ -93,9 +94,11 @@ class BagWriter:
                 twist=types["geometry_msgs/msg/Twist"](linear=zero, angular=zero), covariance=np.zeros(36)))
 
 
-def write_bag(path, log, odometry, with_tf=True, scans=True):
+def write_bag(path, log, odometry, with_tf=True, scans=True, glitches=None, beamless=()):
     """The log's scans at their stamps (the laser frame MOUNT ahead of the base); odometry on /odom
-    and, with_tf, /tf (odom -> base_footprint) a little before and after each scan."""
+    and, with_tf, /tf (odom -> base_footprint) a little before and after each scan. `glitches`:
+    {scan index: the odometry pose read there instead}; the scans at `beamless` have no beams."""
+    glitches = glitches or {}
     with BagWriter(path) as bag:
         scan_topic = bag.connection("/scan", SCAN)
         odom_topic = bag.connection("/odom", ODOM)
@@ -105,12 +108,14 @@ def write_bag(path, log, odometry, with_tf=True, scans=True):
             bag.write(static, START, bag.tf(START, "base_footprint", "laser", MOUNT), TF)
         for index, stamp in enumerate(log.stamps):
             stamp = START + float(stamp)
+            pose = glitches.get(index, odometry[index])
             for when in (stamp - 0.01, stamp + 0.01):
-                bag.write(odom_topic, when, bag.odometry(when, odometry[index]), ODOM)
+                bag.write(odom_topic, when, bag.odometry(when, pose), ODOM)
                 if with_tf:
-                    bag.write(tf_topic, when, bag.tf(when, "odom", "base_footprint", odometry[index]), TF)
+                    bag.write(tf_topic, when, bag.tf(when, "odom", "base_footprint", pose), TF)
             if scans:
-                bag.write(scan_topic, stamp, bag.scan(stamp, log, log.ranges[index]), SCAN)
+                ranges = [] if index in beamless else log.ranges[index]
+                bag.write(scan_topic, stamp, bag.scan(stamp, log, ranges), SCAN)
 
 
 def damaged(good, path):
@@ -160,6 +165,28 @@ def test_a_bag_is_localised_scan_by_scan_from_a_start_1_m_and_half_a_radian_off(
     translation, rotation = errors(trajectory, truth)
     assert translation[10:].mean() < 0.06 and rotation[10:].mean() < 1.0
     assert translation[10:].max() < 0.2
+
+
+def test_odometry_off_the_path_or_not_a_number_and_scans_without_beams_are_left_out(
+        recorded, tmp_path):
+    """A recording from a robot whose odometry glitched (one sample 10^12 m off: taken as a motion,
+    remap_bag grew its map until the kernel killed it) and whose LIDAR sent two empty scans (the
+    pose AMCL gave for them stayed where the robot had been)."""
+    folder, log, truth, odometry, map_yaml, config = recorded
+    bag = tmp_path / "glitched.bag"
+    write_bag(bag, log, odometry, glitches={20: (1e12, -3e11, 2.0), 30: (math.nan, 0.0, 0.0)}, beamless=(40, 41))
+    localized = run_tool(bag, map_yaml, "--config", config, "--seed", "1",
+                         "--initial-pose={},{},{}".format(*truth[0]), "-o", tmp_path / "poses.txt")
+    assert localized.returncode == 0 and localized.stderr == "", localized.stderr
+    repairs = "odometry from tf (2 samples off the path left out, 2 samples that are not a number left out)"
+    assert repairs in localized.stdout and "not converged" not in localized.stdout
+    translation, _ = errors(read_trajectory(tmp_path / "poses.txt"), truth)
+    assert translation[10:].mean() < 0.06 and translation[10:].max() < 0.2
+    mapped = run_tool(bag, "-o", tmp_path / "map", script=REMAP_SCRIPT)
+    assert mapped.returncode == 0 and mapped.stderr == "", mapped.stderr
+    assert f"{SCANS - 2} scans (0 outside the odometry skipped, 2 unusable skipped), " + repairs in mapped.stdout
+    remapped = load_map(tmp_path / "map.yaml")
+    assert remapped.width * remapped.height * remapped.resolution ** 2 < 100 * 100
 
 
 def test_the_odometry_topic_serves_when_the_bag_has_no_tf_given_the_mount(recorded, tmp_path):

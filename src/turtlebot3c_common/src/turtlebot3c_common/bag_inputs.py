@@ -12,9 +12,18 @@ import struct
 import numpy as np
 
 from .message_fields import pose_from_msg, pose_from_transform
-from .se2 import interpolate_pose
+from .se2 import compose, interpolate_pose, inverse, relative
 
 TF_TOPICS = ("/tf", "/tf_static")
+# Faster than this between two odometry samples (taken at least MIN_STEP_TIME apart), the
+# odometry jumped: no robot this stack maps with is that fast (the Radish logs' robots step
+# 1-4 m between samples 1 s apart).
+MAX_SPEED = 10.0          # m/s
+MAX_TURN_RATE = 10.0      # rad/s
+MIN_STEP_TIME = 0.1       # s
+# s: odometry that stays where it jumped to for this long was reset; back sooner, it glitched.
+JUMP_CONFIRM_TIME = 1.0
+IDENTITY = (0.0, 0.0, 0.0)
 
 
 class BagError(ValueError):
@@ -115,16 +124,78 @@ def odometry_series(inputs, odometry_source, base_frame, odom_topic):
                        f"{odom_topic}")
     if not inputs.scans:
         raise BagError("bag has no scans")
-    return series, "tf" if use_tf else odom_topic
+    return series, ("tf" if use_tf else odom_topic) + series.repairs()
 
 
 class OdometrySeries:
-    """Poses at sorted stamps, interpolated at any time within them (as tf: linear, yaw the short way)."""
+    """Poses at sorted stamps, interpolated at any time within them (as tf: linear, yaw the short way).
+
+    A sample that is not a number is left out. A step no robot makes (faster than MAX_SPEED or
+    MAX_TURN_RATE) is the odometry's own: samples off the path that it then comes back to (a
+    glitch) are left out; odometry that stays where it jumped to for JUMP_CONFIRM_TIME (a board
+    reset) continues from the sample before the jump, as the wheel odometry's driver does. Taken
+    as a motion, one sample 10^12 m off made remap_bag grow its map until the kernel killed it,
+    and AMCL's particles never came back."""
 
     def __init__(self, stamps, poses):
         order = np.argsort(np.asarray(stamps, dtype=float), kind="stable")
-        self.stamps = [stamps[i] for i in order]
-        self.poses = [poses[i] for i in order]
+        self.stamps, self.poses = [], []
+        self.not_numbers = self.off_path = self.jumps = 0
+        numbers = []
+        for index in order:
+            stamp, pose = float(stamps[index]), tuple(float(value) for value in poses[index])
+            if all(math.isfinite(value) for value in (stamp,) + pose):
+                numbers.append((stamp, pose))
+            else:
+                self.not_numbers += 1
+        self._mend(numbers)
+
+    def _mend(self, samples):
+        offset = IDENTITY  # what the jumps so far moved the odometry by, undone
+        kept = None        # the last sample kept, as read
+        suspects = []      # the samples since one jumped from it, as read
+        for stamp, pose in samples:
+            # Odometry that goes on from where it jumped to stays there, even once the time since
+            # the sample before the jump would allow the step back.
+            if suspects and not _jumped(suspects[-1], (stamp, pose)):
+                suspects.append((stamp, pose))
+                if stamp - suspects[0][0] >= JUMP_CONFIRM_TIME:
+                    offset = self._continue_after_jump(suspects)
+                    suspects, kept = [], suspects[-1]
+            elif kept is None or not _jumped(kept, (stamp, pose)):
+                self.off_path += len(suspects)
+                suspects, kept = [], (stamp, pose)
+                self._append(stamp, compose(offset, pose) if offset != IDENTITY else pose)
+            else:
+                self.off_path += len(suspects)
+                suspects = [(stamp, pose)]
+        if suspects:  # the odometry ends where it jumped to: it stayed there
+            self._continue_after_jump(suspects)
+
+    def _continue_after_jump(self, samples):
+        """Append `samples` (as read, the first one jumped) continuing from the last sample
+        appended; returns the offset that takes odometry as read there."""
+        self.jumps += 1
+        offset = compose(self.poses[-1], inverse(samples[0][1]))
+        # The first as it is: through the offset, a far sample's rounding would stay in the rest.
+        self._append(samples[0][0], self.poses[-1])
+        for stamp, pose in samples[1:]:
+            self._append(stamp, compose(offset, pose))
+        return offset
+
+    def _append(self, stamp, pose):
+        self.stamps.append(stamp)
+        self.poses.append(pose)
+
+    def repairs(self):
+        """What was mended, for a summary line ("" when nothing was)."""
+        notes = [f"{_counted(self.jumps, 'jump')} taken as no motion"] if self.jumps else []
+        if self.off_path:
+            notes.append(f"{_counted(self.off_path, 'sample')} off the path left out")
+        if self.not_numbers:
+            notes.append(f"{_counted(self.not_numbers, 'sample')} that {'is' if self.not_numbers == 1 else 'are'} "
+                         "not a number left out")
+        return f" ({', '.join(notes)})" if notes else ""
 
     def __len__(self):
         return len(self.stamps)
@@ -138,6 +209,21 @@ class OdometrySeries:
         before, after = index - 1, index
         span = self.stamps[after] - self.stamps[before]
         return interpolate_pose(self.poses[before], self.poses[after], (stamp - self.stamps[before]) / span)
+
+
+def time_increment(scan):
+    """A LaserScan's time between beams; 0 (beams at one time, no deskewing) when it is not a number."""
+    return scan.time_increment if math.isfinite(scan.time_increment) else 0.0
+
+
+def _counted(count, noun):
+    return f"{count} {noun}" + ("" if count == 1 else "s")
+
+
+def _jumped(sample, later):
+    """Whether odometry went from `sample` to `later` (stamp, pose) faster than any robot moves."""
+    step, reckoned = relative(sample[1], later[1]), max(later[0] - sample[0], MIN_STEP_TIME)
+    return math.hypot(step[0], step[1]) > MAX_SPEED * reckoned or abs(step[2]) > MAX_TURN_RATE * reckoned
 
 
 def write_trajectory(path, trajectory):

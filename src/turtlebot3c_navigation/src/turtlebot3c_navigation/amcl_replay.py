@@ -20,7 +20,7 @@ from typing import List, NamedTuple, Optional, Tuple
 
 import numpy as np
 
-from turtlebot3c_common.bag_inputs import BagError, odometry_series
+from turtlebot3c_common.bag_inputs import BagError, odometry_series, time_increment
 from turtlebot3c_common.scan_deskew import beam_motion, deskew_ranges, reference_time
 from turtlebot3c_common.se2 import compose
 
@@ -82,7 +82,7 @@ def replay(inputs, layers: MapLayers, params, start: Start = AMCL_DEFAULT_START,
             if offsets[frame] is None:
                 raise BagError(f"bag has no transform from {base_frame} to the scan frame {frame} on /tf_static "
                                "or /tf; give the mount (--scan-mount X,Y,YAW)")
-        count, increment = len(scan.ranges), scan.time_increment
+        count, increment = len(scan.ranges), time_increment(scan)
         reference = reference_time(stamp, count, increment)
         odom = series.at(reference)
         if odom is None or series.at(min(stamp, stamp + (count - 1) * increment)) is None:

@@ -7,14 +7,15 @@ Reads the bag with `rosbags` (no ROS installation needed). Inputs, as the live n
   (linear position, shortest-way yaw) between the two messages around the scan; a scan with a
   time_increment is deskewed (scan_deskew) with that odometry over its revolution;
 - the LIDAR mount: the base -> scan frame chain from /tf_static (or /tf), or one given.
-Scans outside the odometry's time span are skipped and counted.
+Scans outside the odometry's time span are skipped and counted, and so are scans without beams
+or with angles that are not numbers.
 """
 import time
 
 import numpy as np
 
 from turtlebot3c_common import bag_inputs
-from turtlebot3c_common.bag_inputs import BagError, odometry_series, parse_pose
+from turtlebot3c_common.bag_inputs import BagError, odometry_series, parse_pose, time_increment
 from turtlebot3c_common.scan_deskew import beam_motion, reference_time
 
 from .slam import Slam
@@ -85,13 +86,14 @@ def mount_in_tree(tree, base_frame, scan_frame):
 
 
 class ReplayResult:
-    def __init__(self, slam, processed, skipped, seconds, duration, odometry_source):
+    def __init__(self, slam, processed, skipped, seconds, duration, odometry_source, unusable=0):
         self.slam = slam
         self.processed = processed
-        self.skipped = skipped
+        self.skipped = skipped                  # scans outside the odometry's time span
+        self.unusable = unusable                # scans without beams or with angles that are not numbers
         self.seconds = seconds                  # processing time (CPU of this process)
         self.duration = duration                # time span the bag covers
-        self.odometry_source = odometry_source  # "tf" or the odometry topic
+        self.odometry_source = odometry_source  # "tf" or the odometry topic, and what was mended in it
 
 
 def replay(inputs, config, base_frame="base_footprint", odometry_source="auto", scan_mount=None,
@@ -99,7 +101,7 @@ def replay(inputs, config, base_frame="base_footprint", odometry_source="auto", 
     """Run the bag's scans through a new Slam, refined at the end (Slam.refine); returns a ReplayResult."""
     series, source = odometry_series(inputs, odometry_source, base_frame, odom_topic)
     slam, geometries, mounts = Slam(config), ScanGeometries(), {}
-    processed = skipped = 0
+    processed = skipped = unusable = 0
     started = time.process_time()
     for stamp, scan in sorted(inputs.scans, key=lambda item: item[0]):
         frame = scan.header.frame_id
@@ -108,8 +110,13 @@ def replay(inputs, config, base_frame="base_footprint", odometry_source="auto", 
             if mounts[frame] is None:
                 raise BagError(f"bag has no transform from {base_frame} to the scan frame {frame} on /tf_static "
                                "or /tf; give the mount (--scan-mount X,Y,YAW)")
+        try:
+            geometry = geometries.get(scan, mounts[frame])
+        except ValueError:  # no beams, or angles that are not numbers: nothing to map, the rest still is
+            unusable += 1
+            continue
         # As the live node: a scan measured over a revolution is deskewed to its latest beam.
-        count, increment = len(scan.ranges), scan.time_increment
+        count, increment = len(scan.ranges), time_increment(scan)
         reference = reference_time(stamp, count, increment)
         first_beam = min(stamp, stamp + (count - 1) * increment)
         odometry = series.at(reference)
@@ -117,11 +124,10 @@ def replay(inputs, config, base_frame="base_footprint", odometry_source="auto", 
             skipped += 1
             continue
         motion = beam_motion(stamp, count, increment, series.at)
-        slam.add_scan(reference, np.asarray(scan.ranges, dtype=np.float64), geometries.get(scan, mounts[frame]),
-                      odometry, motion)
+        slam.add_scan(reference, np.asarray(scan.ranges, dtype=np.float64), geometry, odometry, motion)
         processed += 1
     slam.refine()
-    return ReplayResult(slam, processed, skipped, time.process_time() - started, inputs.duration, source)
+    return ReplayResult(slam, processed, skipped, time.process_time() - started, inputs.duration, source, unusable)
 
 
 def parse_mount(text):
