@@ -122,6 +122,20 @@ def test_map_saver_writes_the_published_map(session):
     assert (saved.data == 100).sum() > 0
 
 
+def test_a_scan_without_beams_is_skipped_with_a_warning_not_a_traceback(session):
+    master = session["master"]
+    for _ in range(3):
+        master.probe.publish("/scan", "sensor_msgs/LaserScan", {"header": {"frame_id": "base_scan"}})
+    logs = master.workdir / "ros_log"
+
+    def node_log():
+        return "".join(path.read_text(errors="replace") for path in logs.rglob("*.log"))
+    ros_harness.wait_until(lambda: "slam: scan at 0.000 skipped: a scan needs at least one beam" in node_log(), 20,
+                           "the SLAM node did not say it skipped the scan without beams")
+    assert "Traceback" not in node_log()
+    master.wait_for_node("/turtlebot3_slam_gmapping", timeout=10)
+
+
 def test_offline_remapping_of_the_session_bag_gives_the_live_map(session):
     master, folder = session["master"], session["folder"]
     session["simulator"].stop()  # no more scans
