@@ -1,6 +1,7 @@
 """Offline localisation (localize_bag): real scans of a Radish log written to a ROS 1 bag with rosbags, a
-map_server map of the same place, the pose per scan against the log's reference. No ROS master: the
-script runs from the source tree as tests/unit's modules do."""
+map_server map of the same place, the pose per scan against the log's reference; and remap_bag on the
+same bag with glitches in it. No ROS master: the scripts run from the source tree as tests/unit's
+modules do."""
 import math
 import os
 import subprocess
