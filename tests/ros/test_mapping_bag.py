@@ -183,6 +183,7 @@ def test_missing_or_corrupt_bag_fails_clearly(ros_env, tmp_path):
     ("config not YAML", "is not valid YAML: expected ',' or ']'"),
     ("config not text", "is not a text file of SLAM parameters"),
     ("config a folder", "cannot read SLAM parameters from"),
+    ("config number too large", "SLAM parameter resolution must be a finite number, got 1000"),
 ])
 def test_a_damaged_bag_or_a_broken_config_fails_with_one_line(ros_env, recorded, tmp_path, problem, expected):
     folder, _, _ = recorded
@@ -194,7 +195,8 @@ def test_a_damaged_bag_or_a_broken_config_fails_with_one_line(ros_env, recorded,
     elif problem == "config a folder":
         config = tmp_path
     else:
-        config.write_bytes({"config not YAML": b"resolution: [0.05\n", "config not text": b"\xff\xfe\x00"}[problem])
+        config.write_bytes({"config not YAML": b"resolution: [0.05\n", "config not text": b"\xff\xfe\x00",
+                            "config number too large": b"resolution: 1" + b"0" * 400 + b"\n"}[problem])
     result = remap(ros_env, bag, "--config", config, "-o", tmp_path / "map")
     lines = result.stderr.strip().splitlines()
     assert result.returncode == 1 and len(lines) == 1 and lines[0].startswith("remap_bag: "), result.stderr

@@ -1,5 +1,7 @@
 """A node's parameters from a YAML file named on a command line (remap_bag --config, localize_bag
---config). No rospy."""
+--config), and the check their values share. No rospy."""
+import math
+
 import yaml
 
 
@@ -23,3 +25,14 @@ def load_parameter_file(path, what):
     if not isinstance(values, dict):
         raise ValueError(f"{path} is not a YAML mapping of {what}")
     return values
+
+
+def is_finite_number(value):
+    """Whether a value read from a file is a finite number: not a bool, a string, NaN or an
+    infinity, nor an integer too large for a float (YAML reads 1 and 400 zeros as one)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False

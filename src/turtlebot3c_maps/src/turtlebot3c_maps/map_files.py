@@ -49,13 +49,14 @@ building blocks, public for tools and tests;
 ``write_atomically(path, content)`` replaces a file whole or not at all (also for map_store).
 """
 import json
-import math
 import os
 import stat
 import tempfile
 
 import numpy as np
 import yaml
+
+from turtlebot3c_common.parameter_files import is_finite_number
 
 UNKNOWN = -1
 FREE = 0
@@ -324,7 +325,7 @@ def parse_map_description(content, path):
 
     def number(key):
         value = document[key]
-        if not _finite_number(value):
+        if not is_finite_number(value):
             raise MapFileError(f"map file {path}: {key} must be a number, got {shown(value)}")
         return float(value)
 
@@ -335,7 +336,7 @@ def parse_map_description(content, path):
     if resolution <= 0:
         raise MapFileError(f"map file {path}: resolution must be positive, got {resolution}")
     origin = document["origin"]
-    if not isinstance(origin, (list, tuple)) or len(origin) != 3 or not all(_finite_number(v) for v in origin):
+    if not isinstance(origin, (list, tuple)) or len(origin) != 3 or not all(is_finite_number(v) for v in origin):
         raise MapFileError(f"map file {path}: origin must be [x, y, yaw] numbers, got {shown(origin)}")
     negate = document["negate"]
     if isinstance(negate, bool) or not isinstance(negate, int) or negate not in (0, 1):
@@ -348,15 +349,6 @@ def parse_map_description(content, path):
         "negate": negate,
         "occupied_thresh": number("occupied_thresh"), "free_thresh": number("free_thresh"), "mode": mode,
     }
-
-
-def _finite_number(value):
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        return False
-    try:
-        return math.isfinite(value)
-    except OverflowError:  # an integer too large for a float
-        return False
 
 
 def shown(value, limit=60):

@@ -45,6 +45,7 @@ import math
 
 import numpy as np
 
+from turtlebot3c_common.parameter_files import is_finite_number
 from turtlebot3c_common.se2 import compose, distance, inverse, poses_within, relative
 
 from . import scan_refinement
@@ -146,7 +147,7 @@ class SlamConfig:
                 ", ".join(unknown), ", ".join(self.DEFAULTS)))
         for name, default in self.DEFAULTS.items():
             value = values.get(name, default)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            if not is_finite_number(value):
                 raise ValueError(f"SLAM parameter {name} must be a finite number, got {value!r}")
             if name in self.INTEGERS:
                 if int(value) != value or value < 1:
