@@ -137,3 +137,11 @@ def test_map_server_without_a_map_exits_with_a_clear_message(navigation):
     wait_until(lambda: not process.running(), 30, "map_server kept running without a map")
     assert process.popen.returncode != 0
     assert f"cannot read map file {missing}" in process.log_text()
+
+
+def test_amcl_with_a_parameter_it_cannot_run_with_exits_with_one_line(navigation):
+    process = navigation.rosrun("turtlebot3c_navigation", "amcl", "__name:=amcl_bad", "_laser_max_range:=-1.0")
+    wait_until(lambda: not process.running(), 30, "amcl kept running with laser_max_range -1")
+    assert process.popen.returncode != 0
+    assert "amcl parameter laser_max_range must be more than 0, got -1.0" in process.log_text()
+    assert "Traceback" not in process.log_text()

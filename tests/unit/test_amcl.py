@@ -29,7 +29,36 @@ def test_kld_needs_more_particles_for_more_bins():
 def test_unknown_parameter_names_are_refused_with_the_known_ones_listed():
     with pytest.raises(ValueError, match="unknown amcl parameters: laser_sigma.*known: min_particles"):
         params_from_dict({"laser_sigma": 0.1})
-    assert params_from_dict({"max_particles": "2000"}).max_particles == 2000
+
+
+def test_parameters_take_the_type_of_their_default():
+    params = params_from_dict({"max_particles": 2000.0, "laser_max_range": 8, "laser_min_range": -1,
+                               "skip_short_beams": False})
+    assert (params.max_particles, params.laser_max_range, params.laser_min_range) == (2000, 8.0, -1.0)
+    assert type(params.max_particles) is int and type(params.laser_max_range) is float
+    assert params.skip_short_beams is False
+
+
+@pytest.mark.parametrize("values, expected", [
+    ({"laser_max_range": float("nan")}, "laser_max_range must be a finite number, got nan"),
+    ({"laser_max_range": 10 ** 400}, "laser_max_range must be a finite number, got 1000"),
+    ({"max_particles": "2000"}, "max_particles must be a finite number, got '2000'"),
+    ({"max_particles": True}, "max_particles must be a finite number, got True"),
+    ({"skip_short_beams": "false"}, "skip_short_beams must be true or false, got 'false'"),
+    ({"max_particles": 2000.5}, "max_particles must be a whole number, got 2000.5"),
+    ({"laser_max_range": -1.0}, "laser_max_range must be more than 0, got -1.0"),
+    ({"max_particles": 0}, "max_particles must be more than 0, got 0"),
+    ({"laser_sigma_hit": 0.0}, "laser_sigma_hit must be more than 0, got 0.0"),
+    ({"odom_alpha3": -0.1}, "odom_alpha3 must not be negative, got -0.1"),
+    ({"min_particles": 500, "max_particles": 100}, "min_particles \\(500\\) must not be more than max_particles"),
+    ({"kld_z": 1.0}, "kld_z must be a probability between 0 and 1, got 1.0"),
+])
+def test_a_value_the_filter_cannot_run_with_is_refused_in_one_line(values, expected):
+    # Each of these made the filter raise or weigh with NaN (laser_max_range 0 divides by zero,
+    # kld_z 1 takes log(0)), or was read as something else ("false" as True).
+    with pytest.raises(ValueError, match="amcl parameter " + expected) as raised:
+        params_from_dict(values)
+    assert "\n" not in str(raised.value)
 
 
 def test_a_map_without_free_space_is_refused():

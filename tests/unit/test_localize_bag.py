@@ -237,6 +237,7 @@ def test_the_initial_pose_defaults_to_the_config_then_the_map_origin(recorded, t
     ("config not text", "is not a text file of amcl parameters"),
     ("config pose not a number", "initial_pose_x must be a finite number, got 'one'"),
     ("config pose too large", "initial_pose_x must be a finite number, got 1000"),
+    ("config range too large", "amcl parameter laser_max_range must be a finite number, got 1000"),
     ("bad pose", "initial pose must be X,Y,YAW"),
 ])
 def test_bad_input_fails_with_one_line_and_no_traceback(recorded, tmp_path, problem, expected):
@@ -266,7 +267,8 @@ def test_bad_input_fails_with_one_line_and_no_traceback(recorded, tmp_path, prob
         config = tmp_path / "config.yaml"
         config.write_bytes({"config not YAML": b"laser_max_range: [30\n", "config not text": b"\xff\xfe\x00",
                             "config pose not a number": b"initial_pose_x: one\n",
-                            "config pose too large": b"initial_pose_x: 1" + b"0" * 400 + b"\n"}[problem])
+                            "config pose too large": b"initial_pose_x: 1" + b"0" * 400 + b"\n",
+                            "config range too large": b"laser_max_range: 1" + b"0" * 400 + b"\n"}[problem])
     elif problem == "bad pose":
         arguments = ["--initial-pose", "1,2"]
     result = run_tool(bag, map_yaml, "--config", config, *arguments)

@@ -36,3 +36,11 @@ def is_finite_number(value):
         return math.isfinite(value)
     except OverflowError:
         return False
+
+
+def finite_number(value, what):
+    """`value` as a float, or ValueError saying that `what` ("SLAM parameter range_max") must be a
+    finite number."""
+    if not is_finite_number(value):
+        raise ValueError(f"{what} must be a finite number, got {value!r}")
+    return float(value)

@@ -20,6 +20,7 @@ from typing import NamedTuple, Optional, Tuple
 
 import numpy as np
 
+from turtlebot3c_common.parameter_files import finite_number
 from turtlebot3c_common.se2 import compose, cos_sin, relative, wrap_angle
 
 from .grid_info import GridInfo
@@ -129,15 +130,47 @@ PIN_SHIFT = 0.5  # m
 PIN_MARGIN = 0.1  # share of the beams
 
 
+# Parameters that divide or size the cloud, so must be more than 0. Every other number may be 0
+# but not negative, except laser_min_range (<= 0: the scan's own range_min). laser_max_range
+# has no "-1: the scan's own range_max" as in ROS amcl: the beam model is built before a scan.
+POSITIVE_PARAMS = ("min_particles", "max_particles", "kld_err", "bin_size_xy", "bin_size_yaw", "laser_max_range",
+                   "laser_sigma_hit")
+
+
 def params_from_dict(values) -> AmclParams:
-    """AmclParams from a mapping (e.g. ROS parameters); unknown keys raise ValueError."""
+    """AmclParams from a mapping (e.g. ROS parameters); ValueError with one line for an unknown
+    key or a value the filter cannot run with."""
     unknown = set(values) - set(AmclParams._fields)
     if unknown:
         raise ValueError("unknown amcl parameters: {}; known: {}".format(
             ", ".join(sorted(unknown)), ", ".join(AmclParams._fields)))
     defaults = AmclParams()
-    converted = {key: type(getattr(defaults, key))(value) for key, value in values.items()}
-    return defaults._replace(**converted)
+    params = defaults._replace(**{name: _checked_param(name, value, getattr(defaults, name))
+                                  for name, value in values.items()})
+    if params.min_particles > params.max_particles:
+        raise ValueError(f"amcl parameter min_particles ({params.min_particles}) must not be more than "
+                         f"max_particles ({params.max_particles})")
+    if not 0.0 < params.kld_z < 1.0:
+        raise ValueError(f"amcl parameter kld_z must be a probability between 0 and 1, got {params.kld_z!r}")
+    return params
+
+
+def _checked_param(name, value, default):
+    """`value` as the type of `default`, or ValueError saying what parameter `name` must be."""
+    if isinstance(default, bool):
+        if not isinstance(value, bool):
+            raise ValueError(f"amcl parameter {name} must be true or false, got {value!r}")
+        return value
+    number = finite_number(value, f"amcl parameter {name}")
+    if isinstance(default, int):
+        if int(number) != number:
+            raise ValueError(f"amcl parameter {name} must be a whole number, got {value!r}")
+        number = int(number)
+    if name in POSITIVE_PARAMS and number <= 0:
+        raise ValueError(f"amcl parameter {name} must be more than 0, got {value!r}")
+    if name != "laser_min_range" and number < 0:
+        raise ValueError(f"amcl parameter {name} must not be negative, got {value!r}")
+    return number
 
 
 def kld_particle_count(bins: int, error: float, z: float) -> float:

@@ -12,7 +12,7 @@ import numpy as np
 
 from turtlebot3c_common.se2 import compose, inverse, wrap_angle
 
-from .amcl import AmclParams, ParticleFilter
+from .amcl import AmclParams, ParticleFilter, params_from_dict
 from .costmap import Costmap, RollingCostmap, footprint_radii
 from .dwa import DwaController, DwaParams, dwa_params_for_model
 from .global_planner import GlobalPlanner
@@ -129,7 +129,7 @@ def move_base_config(values, model) -> MoveBaseConfig:
 
 def amcl_params(values) -> AmclParams:
     """The particle filter's settings among amcl's parameters (config/amcl.yaml as a dict)."""
-    return _override(AmclParams(), values)
+    return params_from_dict({name: value for name, value in values.items() if name in AmclParams._fields})
 
 
 def make_costmaps(layers: MapLayers, params: CostmapParams):
