@@ -45,6 +45,19 @@ def test_speeds_above_the_firmware_limit_are_clamped_and_unrelated_keys_ignored(
     assert config.nav.planner_frequency == 2.0
 
 
+@pytest.mark.parametrize("values, expected", [
+    ({"DWAPlannerROS": {"max_vel_x": float("nan")}}, "DWAPlannerROS/max_vel_x must be a finite number, got nan"),
+    ({"recovery_behavior_enabled": "false"}, "recovery_behavior_enabled must be true or false, got 'false'"),
+    ({"planner_frequency": "2"}, "planner_frequency must be a finite number, got '2'"),
+    ({"controller_frequency": 10 ** 400}, "controller_frequency must be a finite number, got 1000"),
+    ({"planner": {"cost_weight": None}}, "planner/cost_weight must be a finite number, got None"),
+])
+def test_a_move_base_value_of_the_wrong_kind_is_refused_in_one_line(values, expected):
+    # NaN passed the speed clamps (min(nan, limit) is nan), and bool("false") is True.
+    with pytest.raises(ValueError, match="move_base parameter " + expected):
+        move_base_config(values, get_model("burger"))
+
+
 @pytest.mark.parametrize("move_forward_only, min_vel_x", [(None, -0.26), ("false", -0.26), ("true", 0.0)])
 def test_move_forward_only_keeps_move_base_from_driving_backwards_as_upstream(ros_env, move_forward_only, min_vel_x):
     args = ["model:=waffle_pi"] + ([f"move_forward_only:={move_forward_only}"] if move_forward_only else [])

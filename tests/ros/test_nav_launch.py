@@ -139,9 +139,13 @@ def test_map_server_without_a_map_exits_with_a_clear_message(navigation):
     assert f"cannot read map file {missing}" in process.log_text()
 
 
-def test_amcl_with_a_parameter_it_cannot_run_with_exits_with_one_line(navigation):
-    process = navigation.rosrun("turtlebot3c_navigation", "amcl", "__name:=amcl_bad", "_laser_max_range:=-1.0")
-    wait_until(lambda: not process.running(), 30, "amcl kept running with laser_max_range -1")
+@pytest.mark.parametrize("node, parameter, expected", [
+    ("amcl", "_laser_max_range:=-1.0", "amcl parameter laser_max_range must be more than 0, got -1.0"),
+    ("move_base", "_planner_frequency:=often", "move_base parameter planner_frequency must be a finite number"),
+])
+def test_a_parameter_the_node_cannot_run_with_stops_it_with_one_line(navigation, node, parameter, expected):
+    process = navigation.rosrun("turtlebot3c_navigation", node, f"__name:={node}_bad", parameter)
+    wait_until(lambda: not process.running(), 30, f"{node} kept running with {parameter}")
     assert process.popen.returncode != 0
-    assert "amcl parameter laser_max_range must be more than 0, got -1.0" in process.log_text()
+    assert expected in process.log_text()
     assert "Traceback" not in process.log_text()

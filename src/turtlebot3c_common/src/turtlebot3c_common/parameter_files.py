@@ -1,5 +1,5 @@
 """A node's parameters from a YAML file named on a command line (remap_bag --config, localize_bag
---config), and the check their values share. No rospy."""
+--config), and the checks their values share, from a file or from the ROS parameter server. No rospy."""
 import math
 
 import yaml
@@ -44,3 +44,18 @@ def finite_number(value, what):
     if not is_finite_number(value):
         raise ValueError(f"{what} must be a finite number, got {value!r}")
     return float(value)
+
+
+def like_default(value, default, what):
+    """`value` as the type of `default` (bool, int or float), or ValueError saying what `what`
+    ("amcl parameter kld_z") must be. A string is no number here, and "false" no switch."""
+    if isinstance(default, bool):
+        if not isinstance(value, bool):
+            raise ValueError(f"{what} must be true or false, got {value!r}")
+        return value
+    number = finite_number(value, what)
+    if isinstance(default, int):
+        if int(number) != number:
+            raise ValueError(f"{what} must be a whole number, got {value!r}")
+        return int(number)
+    return number

@@ -20,7 +20,7 @@ from typing import NamedTuple, Optional, Tuple
 
 import numpy as np
 
-from turtlebot3c_common.parameter_files import finite_number
+from turtlebot3c_common.parameter_files import like_default
 from turtlebot3c_common.se2 import compose, cos_sin, relative, wrap_angle
 
 from .grid_info import GridInfo
@@ -157,20 +157,13 @@ def params_from_dict(values) -> AmclParams:
 
 def _checked_param(name, value, default):
     """`value` as the type of `default`, or ValueError saying what parameter `name` must be."""
-    if isinstance(default, bool):
-        if not isinstance(value, bool):
-            raise ValueError(f"amcl parameter {name} must be true or false, got {value!r}")
-        return value
-    number = finite_number(value, f"amcl parameter {name}")
-    if isinstance(default, int):
-        if int(number) != number:
-            raise ValueError(f"amcl parameter {name} must be a whole number, got {value!r}")
-        number = int(number)
-    if name in POSITIVE_PARAMS and number <= 0:
-        raise ValueError(f"amcl parameter {name} must be more than 0, got {value!r}")
-    if name != "laser_min_range" and number < 0:
-        raise ValueError(f"amcl parameter {name} must not be negative, got {value!r}")
-    return number
+    what = f"amcl parameter {name}"
+    checked = like_default(value, default, what)
+    if name in POSITIVE_PARAMS and checked <= 0:
+        raise ValueError(f"{what} must be more than 0, got {value!r}")
+    if name != "laser_min_range" and checked < 0:
+        raise ValueError(f"{what} must not be negative, got {value!r}")
+    return checked
 
 
 def kld_particle_count(bins: int, error: float, z: float) -> float:

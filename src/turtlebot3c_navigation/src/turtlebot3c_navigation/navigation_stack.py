@@ -10,6 +10,7 @@ from typing import NamedTuple, Optional
 
 import numpy as np
 
+from turtlebot3c_common.parameter_files import like_default
 from turtlebot3c_common.se2 import compose, inverse, wrap_angle
 
 from .amcl import AmclParams, ParticleFilter, params_from_dict
@@ -104,10 +105,12 @@ class MoveBaseConfig(NamedTuple):
     cost_weight: float
 
 
-def _override(defaults, values):
-    """`defaults` (a NamedTuple) with the fields found in the mapping `values`, converted to
-    the default's type; other keys (frames, other sections) are not this tuple's business."""
-    found = {name: type(getattr(defaults, name))(values[name]) for name in defaults._fields if name in values}
+def _override(defaults, values, section=""):
+    """`defaults` (a NamedTuple) with the fields found in the mapping `values`, each of the
+    default's type (ValueError otherwise); other keys (frames, other sections) are not this
+    tuple's business."""
+    found = {name: like_default(values[name], getattr(defaults, name), f"move_base parameter {section}{name}")
+             for name in defaults._fields if name in values}
     return defaults._replace(**found)
 
 
@@ -115,16 +118,19 @@ def move_base_config(values, model) -> MoveBaseConfig:
     """move_base's settings from its parameters (config/move_base_<model>.yaml as a dict:
     move_base's own keys at the top, then costmap:, planner:, DWAPlannerROS: sections),
     on top of the model's defaults. Speeds never exceed what the model's firmware allows."""
-    dwa = _override(dwa_params_for_model(model), values.get("DWAPlannerROS") or {})
-    dwa = dwa._replace(controller_frequency=float(values.get("controller_frequency", dwa.controller_frequency)),
+    dwa = _override(dwa_params_for_model(model), values.get("DWAPlannerROS") or {}, "DWAPlannerROS/")
+    frequency = like_default(values.get("controller_frequency", dwa.controller_frequency), dwa.controller_frequency,
+                             "move_base parameter controller_frequency")
+    dwa = dwa._replace(controller_frequency=frequency,
                        max_vel_x=min(dwa.max_vel_x, model.max_linear_velocity),
                        min_vel_x=max(dwa.min_vel_x, -model.max_linear_velocity),
                        max_vel_theta=min(dwa.max_vel_theta, model.max_angular_velocity))
     return MoveBaseConfig(
-        costmap=_override(costmap_params_for_model(model), values.get("costmap") or {}),
+        costmap=_override(costmap_params_for_model(model), values.get("costmap") or {}, "costmap/"),
         dwa=dwa,
         nav=_override(NavParams(), values),
-        cost_weight=float((values.get("planner") or {}).get("cost_weight", 1.0)))
+        cost_weight=like_default((values.get("planner") or {}).get("cost_weight", 1.0), 1.0,
+                                 "move_base parameter planner/cost_weight"))
 
 
 def amcl_params(values) -> AmclParams:
