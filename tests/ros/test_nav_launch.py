@@ -141,10 +141,12 @@ def test_map_server_without_a_map_exits_with_a_clear_message(navigation):
 
 @pytest.mark.parametrize("node, parameter, expected", [
     ("amcl", "_laser_max_range:=-1.0", "amcl parameter laser_max_range must be more than 0, got -1.0"),
+    ("amcl", "_initial_pose_x:=nan", "amcl parameter initial_pose_x must be a finite number, got 'nan'"),
     ("move_base", "_planner_frequency:=often", "move_base parameter planner_frequency must be a finite number"),
 ])
 def test_a_parameter_the_node_cannot_run_with_stops_it_with_one_line(navigation, node, parameter, expected):
-    process = navigation.rosrun("turtlebot3c_navigation", node, f"__name:={node}_bad", parameter)
+    name = parameter.split(":=")[0].lstrip("_")  # a node of its own: a private parameter outlives its node
+    process = navigation.rosrun("turtlebot3c_navigation", node, f"__name:={node}_bad_{name}", parameter)
     wait_until(lambda: not process.running(), 30, f"{node} kept running with {parameter}")
     assert process.popen.returncode != 0
     assert expected in process.log_text()
