@@ -1,5 +1,6 @@
 """Deskewing: a scan measured beam by beam while the robot moves, brought back onto the world it saw."""
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -11,6 +12,7 @@ from turtlebot3c_common.scan_deskew import (
     deskew_ranges,
     reference_time,
     sample_times,
+    time_increment,
 )
 from turtlebot3c_common.se2 import transform_points
 from turtlebot3c_navigation.costmap import Costmap
@@ -64,6 +66,16 @@ def test_an_instantaneous_scan_is_left_as_it_is():
     assert np.array_equal(new_ranges, ranges) and np.array_equal(new_angles, ANGLES)
     geometry = ScanGeometry(0.0, 2 * math.pi / BEAMS, BEAMS, 0.12, 3.5, MOUNT)
     assert np.array_equal(scan_rays(geometry, ranges, 8.0, None).hits, scan_rays(geometry, ranges, 8.0).hits)
+
+
+@pytest.mark.parametrize("increment", [float("nan"), float("inf"), -float("inf")])
+def test_a_time_between_beams_that_is_no_number_counts_as_an_instantaneous_scan(increment):
+    # Another driver's scan, or a damaged recording: the nodes and the replays take the scan as it is
+    # (beam_motion would raise "cannot convert float NaN to integer" at each such scan).
+    scan = SimpleNamespace(time_increment=increment)
+    assert time_increment(scan) == 0.0
+    assert beam_motion(5.0, BEAMS, time_increment(scan), lambda t: pytest.fail("no odometry is needed")) is None
+    assert time_increment(SimpleNamespace(time_increment=LDS_INCREMENT)) == LDS_INCREMENT
 
 
 def test_reference_is_the_latest_beam_whichever_way_the_beams_run():

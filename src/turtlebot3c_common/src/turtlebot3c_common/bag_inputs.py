@@ -211,11 +211,6 @@ class OdometrySeries:
         return interpolate_pose(self.poses[before], self.poses[after], (stamp - self.stamps[before]) / span)
 
 
-def time_increment(scan):
-    """A LaserScan's time between beams; 0 (beams at one time, no deskewing) when it is not a number."""
-    return scan.time_increment if math.isfinite(scan.time_increment) else 0.0
-
-
 def _counted(count, noun):
     return f"{count} {noun}" + ("" if count == 1 else "s")
 

@@ -26,6 +26,12 @@ from .se2 import cos_sin
 SAMPLE_STEP = 0.02  # s between the odometry poses sampled over a scan (odometry comes at 30-50 Hz)
 
 
+def time_increment(scan):
+    """A LaserScan's time between beams; 0 (beams at one time, no deskewing) when it is not a
+    number, as another driver or a damaged recording may give."""
+    return scan.time_increment if math.isfinite(scan.time_increment) else 0.0
+
+
 def beam_times(stamp, count, time_increment):
     """When each of `count` beams was measured (s)."""
     return stamp + np.arange(count, dtype=np.float64) * time_increment

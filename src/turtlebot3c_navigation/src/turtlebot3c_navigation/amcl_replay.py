@@ -20,8 +20,8 @@ from typing import List, NamedTuple, Optional, Tuple
 
 import numpy as np
 
-from turtlebot3c_common.bag_inputs import BagError, odometry_series, time_increment
-from turtlebot3c_common.scan_deskew import beam_motion, deskew_ranges, reference_time
+from turtlebot3c_common.bag_inputs import BagError, odometry_series
+from turtlebot3c_common.scan_deskew import beam_motion, deskew_ranges, reference_time, time_increment
 from turtlebot3c_common.se2 import compose
 
 from .navigation_stack import Localizer, MapLayers, make_filter

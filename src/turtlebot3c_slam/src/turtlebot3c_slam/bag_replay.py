@@ -15,8 +15,8 @@ import time
 import numpy as np
 
 from turtlebot3c_common import bag_inputs
-from turtlebot3c_common.bag_inputs import BagError, odometry_series, parse_pose, time_increment
-from turtlebot3c_common.scan_deskew import beam_motion, reference_time
+from turtlebot3c_common.bag_inputs import BagError, odometry_series, parse_pose
+from turtlebot3c_common.scan_deskew import beam_motion, reference_time, time_increment
 
 from .slam import Slam
 from .slam_messages import ScanGeometries, mount_from_transform
