@@ -143,6 +143,11 @@ def test_a_scan_without_a_usable_beam_still_moves_the_estimate_with_the_odometry
     for odom, blind in (((0.3, 0.0, 0.0), np.full(90, np.inf)), ((0.6, 0.0, 0.0), np.zeros(0))):
         assert localizer.update(odom, blind, angles[:len(blind)], 0.0, (0.0, 0.0, 0.0))
         assert pose_error(localizer.pose(odom), (2.0 + odom[0], 2.0, 0.0))[0] < 0.05
+    # Beams whose angles are not numbers (a damaged scan) are no beams either: none is weighed.
+    no_angles = np.full(len(ranges), np.nan)
+    assert particle_filter.select_beams(ranges, no_angles, 0.0)[0].size == 0
+    assert localizer.update((0.9, 0.0, 0.0), ranges, no_angles, 0.0, (0.0, 0.0, 0.0))
+    assert pose_error(localizer.pose((0.9, 0.0, 0.0)), (2.9, 2.0, 0.0))[0] < 0.05
 
 
 def test_a_lost_filter_first_spreads_its_cloud_around_the_last_fitted_estimate_then_goes_global():

@@ -477,12 +477,12 @@ class ParticleFilter:
         return (trans / short) ** 2
 
     def select_beams(self, ranges, angles, range_min):
-        """Valid beams (finite, within limits), evenly thinned to laser_max_beams."""
+        """Valid beams (finite range and angle, within limits), evenly thinned to laser_max_beams."""
         p = self.params
         ranges = np.asarray(ranges, dtype=float)
         angles = np.asarray(angles, dtype=float)
         low = p.laser_min_range if p.laser_min_range > 0 else range_min
-        valid = np.isfinite(ranges) & (ranges > low) & (ranges < p.laser_max_range)
+        valid = np.isfinite(ranges) & np.isfinite(angles) & (ranges > low) & (ranges < p.laser_max_range)
         ranges, angles = ranges[valid], angles[valid]
         if ranges.size > p.laser_max_beams > 0:
             pick = np.linspace(0, ranges.size - 1, p.laser_max_beams).round().astype(int)

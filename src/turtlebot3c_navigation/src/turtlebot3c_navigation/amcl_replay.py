@@ -24,7 +24,7 @@ from turtlebot3c_common.bag_inputs import BagError, odometry_series
 from turtlebot3c_common.scan_deskew import beam_motion, deskew_ranges, reference_time, time_increment
 from turtlebot3c_common.se2 import compose
 
-from .navigation_stack import Localizer, MapLayers, make_filter
+from .navigation_stack import Localizer, MapLayers, make_filter, scan_angles
 
 
 def sensor_offset_in_tree(tree, base_frame, scan_frame):
@@ -89,7 +89,7 @@ def replay(inputs, layers: MapLayers, params, start: Start = AMCL_DEFAULT_START,
             skipped += 1
             continue
         ranges = np.asarray(scan.ranges, dtype=np.float64)
-        angles = scan.angle_min + np.arange(count) * scan.angle_increment
+        angles = scan_angles(scan)
         ranges, angles = deskew_ranges(ranges, angles, offsets[frame],
                                        beam_motion(stamp, count, increment, series.at))
         if not localizer.filter.initialized:

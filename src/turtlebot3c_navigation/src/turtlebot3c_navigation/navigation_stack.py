@@ -189,6 +189,7 @@ class Localizer:
 
 
 def scan_angles(scan):
+    """Each beam's angle (rad) in a sensor_msgs/LaserScan's frame."""
     return scan.angle_min + np.arange(len(scan.ranges)) * scan.angle_increment
 
 
