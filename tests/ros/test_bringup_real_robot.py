@@ -185,3 +185,19 @@ def test_an_unknown_model_stops_the_driver_with_the_known_ones(robot, executable
     wait_until(lambda: not driver.running(), 30, f"{executable} kept running with {value}")
     assert driver.popen.returncode != 0
     assert value in driver.log_text() and known in driver.log_text()
+
+
+@pytest.mark.parametrize("package, executable, parameter, expected", [
+    # Infinite or not a number, the timeouts would never stop a robot whose commands stopped.
+    ("turtlebot3c_bringup", "opencr_driver", "_command_timeout:=.inf", "~command_timeout must be a finite number"),
+    ("turtlebot3c_teleop", "velocity_watchdog", "_timeout:=.nan", "~timeout must be a finite number"),
+    ("turtlebot3c_bringup", "lds_driver", "_range_max:=-1.0", "~range_max must be more than 0, got -1.0"),
+    ("turtlebot3c_bringup", "opencr_driver", "_publish_tf:=maybe", "~publish_tf must be true or false, got 'maybe'"),
+])
+def test_a_parameter_the_node_cannot_run_with_stops_it_with_one_line(robot, package, executable, parameter, expected):
+    master, _ = robot
+    name = parameter.split(":=")[0].lstrip("_")  # a node of its own: a private parameter outlives its node
+    node = master.rosrun(package, executable, f"__name:=bad_{executable}_{name}", parameter)
+    wait_until(lambda: not node.running(), 30, f"{executable} kept running with {parameter}")
+    assert node.popen.returncode != 0
+    assert expected in node.log_text() and "Traceback" not in node.log_text()

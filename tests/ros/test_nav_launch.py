@@ -141,7 +141,7 @@ def test_map_server_without_a_map_exits_with_a_clear_message(navigation):
 
 @pytest.mark.parametrize("node, parameter, expected", [
     ("amcl", "_laser_max_range:=-1.0", "amcl parameter laser_max_range must be more than 0, got -1.0"),
-    ("amcl", "_initial_pose_x:=nan", "amcl parameter initial_pose_x must be a finite number, got 'nan'"),
+    ("amcl", "_initial_pose_x:=nan", "parameter ~initial_pose_x must be a finite number, got 'nan'"),
     ("move_base", "_planner_frequency:=often", "move_base parameter planner_frequency must be a finite number"),
 ])
 def test_a_parameter_the_node_cannot_run_with_stops_it_with_one_line(navigation, node, parameter, expected):

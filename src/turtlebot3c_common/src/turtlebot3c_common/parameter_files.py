@@ -59,3 +59,13 @@ def like_default(value, default, what):
             raise ValueError(f"{what} must be a whole number, got {value!r}")
         return int(number)
     return number
+
+
+def private_parameter(get_param, name, default, positive=False):
+    """A node's private parameter `name` through `get_param` (rospy.get_param), of the type of
+    `default`, and more than 0 if `positive`; ValueError with one line naming it otherwise."""
+    what = f"parameter ~{name}"
+    value = like_default(get_param("~" + name, default), default, what)
+    if positive and value <= 0:
+        raise ValueError(f"{what} must be more than 0, got {value!r}")
+    return value
