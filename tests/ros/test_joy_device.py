@@ -150,3 +150,15 @@ def test_a_press_and_release_read_together_are_both_published(ros_master, joysti
     messages = probe.messages("/joy", start)
     index = next(i for i, m in enumerate(messages) if m["buttons"][2] == 1)
     wait_for_joy(probe, start + index + 1, lambda m: m["buttons"][2] == 0)
+
+
+@pytest.mark.parametrize("parameter, expected", [
+    ("_deadzone:=1.5", "deadzone must be in [0, 1), got 1.5"),
+    ("_autorepeat_rate:=often", "parameter ~autorepeat_rate must be a finite number, got 'often'"),
+])
+def test_a_parameter_the_node_cannot_run_with_stops_it_with_one_line(ros_master, parameter, expected):
+    name = parameter.split(":=")[0].lstrip("_")  # a node of its own: a private parameter outlives its node
+    node = ros_master.rosrun("turtlebot3c_teleop", "joy_node", f"__name:=joystick_bad_{name}", parameter)
+    wait_until(lambda: not node.running(), 30, f"joy_node kept running with {parameter}")
+    assert node.popen.returncode != 0
+    assert expected in node.log_text() and "Traceback" not in node.log_text()

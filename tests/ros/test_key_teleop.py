@@ -261,6 +261,20 @@ def test_unknown_model_is_refused_with_the_known_ones_and_terminal_untouched(ros
     assert session.attributes() == session.original
 
 
+@pytest.mark.parametrize("parameter, expected", [
+    ("_rate:=.inf", "parameter ~rate must be a finite number, got inf"),
+    ("_linear_step:=.nan", "parameter ~linear_step must be a finite number, got nan"),
+])
+def test_a_parameter_it_cannot_run_with_is_refused_in_one_line_and_terminal_untouched(ros_master, pty_session,
+                                                                                     parameter, expected):
+    name = parameter.split(":=")[0].lstrip("_")  # a node of its own: a private parameter outlives its node
+    session = pty_session("rosrun", "turtlebot3c_teleop", "teleop_key", f"__name:=key_bad_{name}", "_model:=burger",
+                          parameter)
+    assert session.wait_exit() == 2
+    assert expected in session.text() and "Traceback" not in session.text()
+    assert session.attributes() == session.original
+
+
 def test_after_a_roscore_restart_the_next_key_selects_key_vel_again_and_drives(ros_master, pty_session):
     """Last here (it restarts the module's master): the key app registers again in process; the mux,
     restarted by its guard, is back on nav_vel until a key is pressed."""
