@@ -257,6 +257,15 @@ class RosMaster:
     def rosrun(self, package, executable, *args, **kwargs):
         return self.start(["rosrun", package, executable] + list(args), name=executable, **kwargs)
 
+    def rosrun_refused(self, package, executable, parameter, timeout=30):
+        """Run `executable` with one private `parameter` (`_name:=value`) it should refuse, under a
+        node name of its own (a private parameter outlives its node on the master, and would reach
+        the next node of that name); wait for it to stop. (exit status, its log)."""
+        name = f"{executable}_refusing_{parameter.split(':=')[0].lstrip('_')}"
+        node = self.rosrun(package, executable, f"__name:={name}", parameter)
+        wait_until(lambda: not node.running(), timeout, f"{executable} kept running with {parameter}")
+        return node.popen.returncode, node.log_text()
+
     @property
     def probe(self):
         if self._probe is None:

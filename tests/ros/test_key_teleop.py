@@ -267,9 +267,9 @@ def test_unknown_model_is_refused_with_the_known_ones_and_terminal_untouched(ros
 ])
 def test_a_parameter_it_cannot_run_with_is_refused_in_one_line_and_terminal_untouched(ros_master, pty_session,
                                                                                      parameter, expected):
-    name = parameter.split(":=")[0].lstrip("_")  # a node of its own: a private parameter outlives its node
-    session = pty_session("rosrun", "turtlebot3c_teleop", "teleop_key", f"__name:=key_bad_{name}", "_model:=burger",
-                          parameter)
+    # A node name of its own: a private parameter outlives its node, and would reach the next key app.
+    own_name = "__name:=key_refusing" + parameter[:parameter.index(":=")]
+    session = pty_session("rosrun", "turtlebot3c_teleop", "teleop_key", own_name, "_model:=burger", parameter)
     assert session.wait_exit() == 2
     assert expected in session.text() and "Traceback" not in session.text()
     assert session.attributes() == session.original
