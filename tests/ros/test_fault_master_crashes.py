@@ -65,3 +65,9 @@ def test_a_parameter_the_new_master_did_not_take_is_set_again_and_robot_state_pu
                "robot_state_publisher did not come back")
     ros_master.probe.wait_for_message("/tf_static", "tf2_msgs/TFMessage", start=0, timeout=30)
     assert "turtlebot3_burger" in ros_master.param("/robot_description")
+
+
+def test_a_guard_period_it_cannot_run_with_stops_it_with_one_line(ros_master):
+    status, log = ros_master.rosrun_refused("turtlebot3c_common", "master_restart_guard", "_period:=0")
+    assert status == 1
+    assert "parameter ~period must be more than 0, got 0" in log and "Traceback" not in log

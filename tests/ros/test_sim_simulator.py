@@ -109,3 +109,15 @@ def test_publish_clock_runs_the_node_on_simulated_time(make_master):
     scan = master.probe.wait_for_message("/scan", "sensor_msgs/LaserScan", timeout=30)
     # Simulated seconds since the simulator started, not the wall clock's 1.7e9.
     assert clock["clock"] < 100 and 0.5 < scan["header"]["stamp"] < 100
+
+
+@pytest.mark.parametrize("parameter, expected", [
+    ("_x_pos:=nan", "parameter ~x_pos must be a finite number, got nan"),
+    ("_x_pos:=left", "parameter ~x_pos must be a number, got 'left'"),
+    ("_rate:=0", "parameter ~rate must be more than 0, got 0"),
+    ("_publish_clock:=maybe", "parameter ~publish_clock must be true or false, got 'maybe'"),
+])
+def test_a_parameter_the_simulator_cannot_run_with_stops_it_with_one_line(ros_master, parameter, expected):
+    status, log = ros_master.rosrun_refused("turtlebot3c_sim", "simulator", parameter)
+    assert status == 2
+    assert expected in log and "Traceback" not in log
