@@ -46,9 +46,10 @@ def finite_number(value, what):
     return float(value)
 
 
-def like_default(value, default, what):
-    """`value` as the type of `default` (bool, int or float), or ValueError saying what `what`
-    ("amcl parameter kld_z") must be. A string is no number here, and "false" no switch."""
+def like_default(value, default, what, positive=False):
+    """`value` as the type of `default` (bool, int or float), and more than 0 if `positive`, or
+    ValueError saying what `what` ("amcl parameter kld_z") must be. A string is no number here,
+    and "false" no switch."""
     if isinstance(default, bool):
         if not isinstance(value, bool):
             raise ValueError(f"{what} must be true or false, got {value!r}")
@@ -57,15 +58,13 @@ def like_default(value, default, what):
     if isinstance(default, int):
         if int(number) != number:
             raise ValueError(f"{what} must be a whole number, got {value!r}")
-        return int(number)
+        number = int(number)
+    if positive and number <= 0:
+        raise ValueError(f"{what} must be more than 0, got {value!r}")
     return number
 
 
 def private_parameter(get_param, name, default, positive=False):
     """A node's private parameter `name` through `get_param` (rospy.get_param), of the type of
     `default`, and more than 0 if `positive`; ValueError with one line naming it otherwise."""
-    what = f"parameter ~{name}"
-    value = like_default(get_param("~" + name, default), default, what)
-    if positive and value <= 0:
-        raise ValueError(f"{what} must be more than 0, got {value!r}")
-    return value
+    return like_default(get_param("~" + name, default), default, f"parameter ~{name}", positive)

@@ -158,9 +158,7 @@ def params_from_dict(values) -> AmclParams:
 def _checked_param(name, value, default):
     """`value` as the type of `default`, or ValueError saying what parameter `name` must be."""
     what = f"amcl parameter {name}"
-    checked = like_default(value, default, what)
-    if name in POSITIVE_PARAMS and checked <= 0:
-        raise ValueError(f"{what} must be more than 0, got {value!r}")
+    checked = like_default(value, default, what, positive=name in POSITIVE_PARAMS)
     if name != "laser_min_range" and checked < 0:
         raise ValueError(f"{what} must not be negative, got {value!r}")
     return checked
