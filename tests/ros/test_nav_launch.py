@@ -140,7 +140,9 @@ def test_map_server_without_a_map_exits_with_a_clear_message(navigation):
 
 
 @pytest.mark.parametrize("node, parameter, expected", [
-    ("amcl", "_laser_max_range:=-1.0", "amcl parameter laser_max_range must be more than 0, got -1.0"),
+    ("amcl", "_laser_sigma_hit:=0.0", "amcl parameter laser_sigma_hit must be more than 0, got 0.0"),
+    ("amcl", "_seed:=-3", "amcl parameter seed must be from 0 to 2^32 - 1, got -3"),
+    ("amcl", "_seed:=abc", "amcl parameter seed must be a finite number, got 'abc'"),
     ("amcl", "_initial_pose_x:=nan", "parameter ~initial_pose_x must be a finite number, got 'nan'"),
     ("move_base", "_planner_frequency:=often", "move_base parameter planner_frequency must be a finite number"),
 ])

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from turtlebot3c_description.models import get_model
-from turtlebot3c_navigation.amcl import AmclParams, ParticleFilter, kld_particle_count, params_from_dict
+from turtlebot3c_navigation.amcl import AmclParams, ParticleFilter, checked_seed, kld_particle_count, params_from_dict
 from turtlebot3c_navigation.grid_info import GridInfo
 from turtlebot3c_navigation.likelihood_field import LikelihoodField
 from turtlebot3c_navigation.navigation_stack import Localizer, make_filter, make_navigator, pose_error, scan_offset
@@ -46,7 +46,6 @@ def test_parameters_take_the_type_of_their_default():
     ({"max_particles": True}, "max_particles must be a finite number, got True"),
     ({"skip_short_beams": "false"}, "skip_short_beams must be true or false, got 'false'"),
     ({"max_particles": 2000.5}, "max_particles must be a whole number, got 2000.5"),
-    ({"laser_max_range": -1.0}, "laser_max_range must be more than 0, got -1.0"),
     ({"max_particles": 0}, "max_particles must be more than 0, got 0"),
     ({"laser_sigma_hit": 0.0}, "laser_sigma_hit must be more than 0, got 0.0"),
     ({"odom_alpha3": -0.1}, "odom_alpha3 must not be negative, got -0.1"),
@@ -54,11 +53,48 @@ def test_parameters_take_the_type_of_their_default():
     ({"kld_z": 1.0}, "kld_z must be a probability between 0 and 1, got 1.0"),
 ])
 def test_a_value_the_filter_cannot_run_with_is_refused_in_one_line(values, expected):
-    # Each of these made the filter raise or weigh with NaN (laser_max_range 0 divides by zero,
+    # Each of these made the filter raise or weigh with NaN (laser_sigma_hit 0 divides by zero,
     # kld_z 1 takes log(0)), or was read as something else ("false" as True).
     with pytest.raises(ValueError, match="amcl parameter " + expected) as raised:
         params_from_dict(values)
     assert "\n" not in str(raised.value)
+
+
+@pytest.mark.parametrize("laser_max_range, scan_range_max, reach", [
+    (-1.0, 2.0, 2.0),  # ROS amcl's -1 (any value <= 0): the scan's own range_max
+    (0.0, 8.0, 8.0),
+    (3.5, 2.0, 2.0),  # as ROS amcl: the parameter, or the scan's range_max where that is less
+    (3.5, 8.0, 3.5),
+    (-1.0, float("nan"), math.inf),  # a range_max that is not a positive number sets no limit
+    (-1.0, 0.0, math.inf),
+    (3.5, float("inf"), 3.5),
+])
+def test_beams_count_up_to_the_scan_s_range_max_or_laser_max_range_where_less(laser_max_range, scan_range_max,
+                                                                             reach):
+    particle_filter = ParticleFilter(*open_grid(), params=AmclParams(laser_max_range=laser_max_range), seed=1)
+    particle_filter.set_pose((2.0, 2.0, 0.0), np.diag([1e-4, 1e-4, 1e-4]))
+    ranges = np.array([0.5, 1.9, 2.0, 3.4, 3.5, 7.9, 8.0, 50.0])
+    angles = np.linspace(-1.0, 1.0, ranges.size)
+    kept = particle_filter.select_beams(ranges, angles, 0.0, scan_range_max)[0]
+    assert kept.tolist() == ranges[ranges < reach].tolist()
+    # Random returns are scored as spread over that reach (ROS amcl: z_rand / range_max).
+    particle_filter.apply_scan(ranges, angles, 0.0, range_max=scan_range_max)
+    expected_field_range = reach if reach < math.inf else (laser_max_range if laser_max_range > 0 else math.inf)
+    assert particle_filter.field.max_range == expected_field_range
+
+
+@pytest.mark.parametrize("value, expected", [
+    ("7", "must be a finite number, got '7'"),
+    (1.5, "must be a whole number, got 1.5"),
+    (-1, "must be from 0 to 2\\^32 - 1, got -1"),
+    (2 ** 32, "must be from 0 to 2\\^32 - 1, got 4294967296"),
+])
+def test_a_seed_numpy_cannot_take_is_refused_in_one_line(value, expected):
+    # A string seed raised in amcl's map callback, at every map; a negative one was reported as
+    # "cannot localise on this map".
+    assert checked_seed(None) is None and checked_seed(2 ** 32 - 1) == 2 ** 32 - 1
+    with pytest.raises(ValueError, match="amcl parameter seed " + expected):
+        checked_seed(value)
 
 
 def test_a_map_without_free_space_is_refused():

@@ -57,7 +57,7 @@ class AmclParams(NamedTuple):
     odom_slip_max: float = 3.0
     laser_max_beams: int = 180
     laser_min_range: float = -1.0  # <= 0: use the scan's own range_min
-    laser_max_range: float = 3.5
+    laser_max_range: float = 3.5  # <= 0: use the scan's own range_max
     laser_z_hit: float = 0.5
     laser_z_rand: float = 0.5
     laser_sigma_hit: float = 0.2
@@ -131,10 +131,9 @@ PIN_MARGIN = 0.1  # share of the beams
 
 
 # Parameters that divide or size the cloud, so must be more than 0. Every other number may be 0
-# but not negative, except laser_min_range (<= 0: the scan's own range_min). laser_max_range
-# has no "-1: the scan's own range_max" as in ROS amcl: the beam model is built before a scan.
-POSITIVE_PARAMS = ("min_particles", "max_particles", "kld_err", "bin_size_xy", "bin_size_yaw", "laser_max_range",
-                   "laser_sigma_hit")
+# but not negative, except the laser's range limits (<= 0, as ROS amcl's -1: the scan's own).
+POSITIVE_PARAMS = ("min_particles", "max_particles", "kld_err", "bin_size_xy", "bin_size_yaw", "laser_sigma_hit")
+SIGNED_PARAMS = ("laser_min_range", "laser_max_range")
 
 
 def params_from_dict(values) -> AmclParams:
@@ -159,9 +158,20 @@ def _checked_param(name, value, default):
     """`value` as the type of `default`, or ValueError saying what parameter `name` must be."""
     what = f"amcl parameter {name}"
     checked = like_default(value, default, what, positive=name in POSITIVE_PARAMS)
-    if name != "laser_min_range" and checked < 0:
+    if name not in SIGNED_PARAMS and checked < 0:
         raise ValueError(f"{what} must not be negative, got {value!r}")
     return checked
+
+
+def checked_seed(value):
+    """The filter's random seed: None (a new one each run) or a whole number numpy takes
+    (0 to 2^32 - 1); ValueError with one line otherwise."""
+    if value is None:
+        return None
+    seed = like_default(value, 0, "amcl parameter seed")
+    if not 0 <= seed < 2 ** 32:
+        raise ValueError(f"amcl parameter seed must be from 0 to 2^32 - 1, got {value!r}")
+    return seed
 
 
 def kld_particle_count(bins: int, error: float, z: float) -> float:
@@ -210,7 +220,8 @@ class ParticleFilter:
         self.rng = np.random.RandomState(seed)
         self.field = LikelihoodField(
             occupied, info, max_distance=params.laser_likelihood_max_dist, sigma_hit=params.laser_sigma_hit,
-            z_hit=params.laser_z_hit, z_rand=params.laser_z_rand, max_range=params.laser_max_range)
+            z_hit=params.laser_z_hit, z_rand=params.laser_z_rand,
+            max_range=params.laser_max_range if params.laser_max_range > 0 else math.inf)
         free = ~np.asarray(occupied, dtype=bool) if free is None else np.asarray(free, dtype=bool)
         rows, cols = np.nonzero(free)
         if rows.size == 0:
@@ -292,9 +303,10 @@ class ParticleFilter:
         return (math.hypot(dx, dy) >= self.params.update_min_d
                 or abs(wrap_angle(odom[2] - self.last_odom[2])) >= self.params.update_min_a)
 
-    def update(self, odom, ranges, angles, range_min=0.0, sensor_offset=(0.0, 0.0, 0.0)) -> bool:
-        """Feed one scan and the odometry pose at its time. Returns True when the filter ran
-        (moved enough since the last run, or a new initial pose / relocalisation is pending)."""
+    def update(self, odom, ranges, angles, range_min=0.0, sensor_offset=(0.0, 0.0, 0.0), range_max=math.inf) -> bool:
+        """Feed one scan (its beams, their angles and the scan's range_min and range_max) and the
+        odometry pose at its time. Returns True when the filter ran (moved enough since the last
+        run, or a new initial pose / relocalisation is pending)."""
         if not self.initialized:
             return False
         if self.last_odom is None:
@@ -305,11 +317,11 @@ class ParticleFilter:
         self.apply_motion(self.last_odom, odom)
         self.last_odom = tuple(odom)
         self._force_update = False
-        self.apply_scan(ranges, angles, range_min, sensor_offset)
+        self.apply_scan(ranges, angles, range_min, sensor_offset, range_max)
         self._updates += 1
         if self._updates % max(1, self.params.resample_interval) == 0:
             self.resample()
-        if self._lost(ranges, angles, range_min, sensor_offset):
+        if self._lost(ranges, angles, range_min, sensor_offset, range_max):
             if self._tracked and self._anchor and not self._local_tried and self.params.lost_local_std_xy > 0.0:
                 self._respread_locally(odom)
             else:
@@ -317,11 +329,11 @@ class ParticleFilter:
                 self.relocalizations += 1
         return True
 
-    def _lost(self, ranges, angles, range_min, sensor_offset) -> bool:
+    def _lost(self, ranges, angles, range_min, sensor_offset, range_max) -> bool:
         p = self.params
         if p.lost_updates <= 0 or self.estimate is None:
             return False
-        ranges, angles = self.select_beams(ranges, angles, range_min)
+        ranges, angles = self.select_beams(ranges, angles, range_min, range_max)
         if ranges.size == 0:
             return False
         ends_on, passes_through = self._classify_beams(self.estimate.pose, ranges, angles, sensor_offset)
@@ -474,22 +486,33 @@ class ParticleFilter:
             return 1.0
         return (trans / short) ** 2
 
-    def select_beams(self, ranges, angles, range_min):
+    def reach(self, range_max) -> float:
+        """The range (m) from which a beam is a no-return, for a scan that gives `range_max`: the
+        scan's, or laser_max_range where that is less, as in ROS amcl. A range_max that is not a
+        positive number sets no limit."""
+        scan_reach = range_max if 0.0 < range_max < math.inf else math.inf
+        limit = self.params.laser_max_range
+        return min(limit, scan_reach) if limit > 0 else scan_reach
+
+    def select_beams(self, ranges, angles, range_min, range_max=math.inf):
         """Valid beams (finite range and angle, within limits), evenly thinned to laser_max_beams."""
         p = self.params
         ranges = np.asarray(ranges, dtype=float)
         angles = np.asarray(angles, dtype=float)
         low = p.laser_min_range if p.laser_min_range > 0 else range_min
-        valid = np.isfinite(ranges) & np.isfinite(angles) & (ranges > low) & (ranges < p.laser_max_range)
+        valid = np.isfinite(ranges) & np.isfinite(angles) & (ranges > low) & (ranges < self.reach(range_max))
         ranges, angles = ranges[valid], angles[valid]
         if ranges.size > p.laser_max_beams > 0:
             pick = np.linspace(0, ranges.size - 1, p.laser_max_beams).round().astype(int)
             ranges, angles = ranges[pick], angles[pick]
         return ranges, angles
 
-    def apply_scan(self, ranges, angles, range_min=0.0, sensor_offset=(0.0, 0.0, 0.0)):
+    def apply_scan(self, ranges, angles, range_min=0.0, sensor_offset=(0.0, 0.0, 0.0), range_max=math.inf):
         """Weight particles by the scan; update the estimate and the recovery averages."""
-        selected = self.select_beams(ranges, angles, range_min)
+        reach = self.reach(range_max)
+        if reach < math.inf:
+            self.field.use_max_range(reach)
+        selected = self.select_beams(ranges, angles, range_min, range_max)
         ranges, angles = selected
         if ranges.size == 0:
             # No beam weighs the cloud, but the motion before moved it: the estimate follows it.

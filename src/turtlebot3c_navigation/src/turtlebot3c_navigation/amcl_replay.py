@@ -97,7 +97,7 @@ def replay(inputs, layers: MapLayers, params, start: Start = AMCL_DEFAULT_START,
                 localizer.global_localization()
             else:
                 localizer.set_pose(start.pose, odom, start.covariance)
-        updates += localizer.update(odom, ranges, angles, scan.range_min, offsets[frame])
+        updates += localizer.update(odom, ranges, angles, scan.range_min, offsets[frame], scan.range_max)
         trajectory.append((reference,) + tuple(localizer.pose(odom)))
     seconds = time.process_time() - started
     estimate = localizer.filter.estimate

@@ -78,6 +78,13 @@ class LikelihoodField:
         self.max_range = max_range
         self._update_log_table()
 
+    def use_max_range(self, max_range):
+        """Score random returns as uniform over `max_range` (m) from now on: the scan's reach,
+        once a scan tells it (the table is rebuilt only when it changes)."""
+        if max_range != self.max_range:
+            self.max_range = max_range
+            self._update_log_table()
+
     def _update_log_table(self):
         probability = (self.z_hit * np.exp(-(self.distances ** 2) / (2.0 * self.sigma_hit ** 2))
                        + self.z_rand / self.max_range)

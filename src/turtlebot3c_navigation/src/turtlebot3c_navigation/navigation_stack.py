@@ -177,8 +177,8 @@ class Localizer:
         self.filter.global_localization()
         self.filter.last_odom = None
 
-    def update(self, odom, ranges, angles, range_min, sensor_offset) -> bool:
-        ran = self.filter.update(odom, ranges, angles, range_min, sensor_offset)
+    def update(self, odom, ranges, angles, range_min, sensor_offset, range_max=math.inf) -> bool:
+        ran = self.filter.update(odom, ranges, angles, range_min, sensor_offset, range_max)
         if ran and self.filter.estimate is not None:
             self.map_from_odom = compose(self.filter.estimate.pose, inverse(odom))
         return ran

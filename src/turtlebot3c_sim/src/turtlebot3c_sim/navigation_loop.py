@@ -89,7 +89,7 @@ class ClosedLoop:
         odom = self.odom_pose()
         for localizer in (self.localizer, self.shadow_localizer):
             if localizer is not None:
-                localizer.update(odom, scan.ranges, angles, scan.range_min, self.sensor_offset)
+                localizer.update(odom, scan.ranges, angles, scan.range_min, self.sensor_offset, scan.range_max)
         self.navigator.update_scan(self.estimated_pose(), odom, scan.ranges, angles, scan.range_min,
                                    self.sensor_offset)
 
