@@ -8,6 +8,7 @@ from rosbags.rosbag1 import Writer
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from testkit import ros_harness
+from testkit.damaged_bag import with_frame_names_not_utf8
 from turtlebot3c_common.bag_inputs import read_trajectory
 from turtlebot3c_maps.map_files import load_map
 from turtlebot3c_sim.evaluation import ROUTES, absolute_trajectory_error, cell_agreement, drive_route
@@ -188,9 +189,8 @@ def test_missing_or_corrupt_bag_fails_clearly(ros_env, tmp_path):
 def test_a_damaged_bag_or_a_broken_config_fails_with_one_line(ros_env, recorded, tmp_path, problem, expected):
     folder, _, _ = recorded
     bag, config = folder / "session.bag", tmp_path / "slam.yaml"
-    if problem == "damaged bag":  # frame names that are not UTF-8: the records parse, the messages do not
-        bag = tmp_path / "damaged.bag"
-        bag.write_bytes((folder / "session.bag").read_bytes().replace(b"base_footprint", b"\xff" * 14))
+    if problem == "damaged bag":
+        bag = with_frame_names_not_utf8(folder / "session.bag", tmp_path / "damaged.bag")
         config.write_text("resolution: 0.05\n")
     elif problem == "config a folder":
         config = tmp_path

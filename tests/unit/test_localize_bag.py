@@ -14,6 +14,7 @@ import yaml
 from rosbags.rosbag1 import Writer
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
+from testkit.damaged_bag import with_frame_names_not_utf8
 from testkit.real_data import AMCL_PARAMS, load_log, reference_map
 from turtlebot3c_common.bag_inputs import read_trajectory
 from turtlebot3c_common.se2 import compose, inverse, wrap_angle
@@ -117,13 +118,6 @@ def write_bag(path, log, odometry, with_tf=True, scans=True, glitches=None, beam
             if scans:
                 ranges = [] if index in beamless else log.ranges[index]
                 bag.write(scan_topic, stamp, bag.scan(stamp, log, ranges), SCAN)
-
-
-def damaged(good, path):
-    """A copy of the bag `good` whose frame names are bytes that are not UTF-8: its records still
-    parse, its messages do not (rosbags then raises whatever its parser trips over)."""
-    path.write_bytes(good.read_bytes().replace(b"base_footprint", b"\xff" * len(b"base_footprint")))
-    return path
 
 
 def base_poses(log):
@@ -262,7 +256,7 @@ def test_bad_input_fails_with_one_line_and_no_traceback(recorded, tmp_path, prob
         bag = tmp_path / "junk.bag"
         bag.write_bytes(b"not a bag at all")
     elif problem == "damaged bag":
-        bag = damaged(folder / "aces.bag", tmp_path / "damaged.bag")
+        bag = with_frame_names_not_utf8(folder / "aces.bag", tmp_path / "damaged.bag")
     elif problem == "no scans":
         bag = tmp_path / "empty.bag"
         write_bag(bag, log.head(5), odometry, scans=False)
