@@ -97,6 +97,19 @@ def test_a_seed_numpy_cannot_take_is_refused_in_one_line(value, expected):
         checked_seed(value)
 
 
+@pytest.mark.parametrize("laser_min_range, scan_range_min, low", [
+    (-1.0, 0.12, 0.12),  # the LDS's range_min
+    (0.3, 0.12, 0.3),  # as ROS amcl: the scan's range_min, or the parameter where more
+    (0.05, 0.12, 0.12),
+    (-1.0, float("nan"), 0.0),  # a range_min that is not a number: no limit but that a range is more than 0
+])
+def test_beams_count_from_the_scan_s_range_min_or_laser_min_range_where_more(laser_min_range, scan_range_min, low):
+    particle_filter = ParticleFilter(*open_grid(), params=AmclParams(laser_min_range=laser_min_range), seed=1)
+    ranges = np.array([0.0, 0.05, 0.1, 0.12, 0.2, 0.3, 0.31, 1.0])
+    kept = particle_filter.select_beams(ranges, np.zeros(ranges.size), scan_range_min)[0]
+    assert kept.tolist() == ranges[ranges > low].tolist()
+
+
 def test_a_map_without_free_space_is_refused():
     occupied, info = open_grid()
     with pytest.raises(ValueError, match="no free cell"):

@@ -56,7 +56,7 @@ class AmclParams(NamedTuple):
     odom_slip_share: float = 0.02
     odom_slip_max: float = 3.0
     laser_max_beams: int = 180
-    laser_min_range: float = -1.0  # <= 0: use the scan's own range_min
+    laser_min_range: float = -1.0  # the scan's own range_min, or this where more
     laser_max_range: float = 3.5  # <= 0: use the scan's own range_max
     laser_z_hit: float = 0.5
     laser_z_rand: float = 0.5
@@ -499,7 +499,7 @@ class ParticleFilter:
         p = self.params
         ranges = np.asarray(ranges, dtype=float)
         angles = np.asarray(angles, dtype=float)
-        low = p.laser_min_range if p.laser_min_range > 0 else range_min
+        low = max(p.laser_min_range, range_min if range_min > 0 else 0.0)  # as ROS amcl; NaN: none
         valid = np.isfinite(ranges) & np.isfinite(angles) & (ranges > low) & (ranges < self.reach(range_max))
         ranges, angles = ranges[valid], angles[valid]
         if ranges.size > p.laser_max_beams > 0:
