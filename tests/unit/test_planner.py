@@ -122,6 +122,35 @@ def test_laser_returns_beyond_obstacle_range_clear_but_do_not_mark():
     assert not costmap.obstacles.any()
 
 
+@pytest.mark.parametrize("reading, range_min, range_max, marks", [
+    (2.5, 0.12, 2.5, False),  # a LIDAR that reports its range_max for no return
+    (2.4, 0.12, 2.5, True),
+    (0.0, 0.0, 8.0, False),  # one that reports 0 and declares no range_min
+    (math.nan, 0.12, 8.0, False),
+    (2.0, math.nan, math.nan, True),  # a damaged scan: limits that are not numbers stand for none
+])
+def test_a_no_return_reading_marks_no_obstacle_and_a_return_still_does(reading, range_min, range_max, marks):
+    """No-return readings (each LIDAR marks them its own way) painted obstacles: a ring at range_max
+    around the robot, or one at the sensor that left the robot no way to move."""
+    costmap = Costmap(INFO, robot_radius=0.1, obstacle_range=3.0, raytrace_range=3.5)
+    ranges, angles = beams_towards(reading)
+    costmap.update_from_scan((0.2, 1.0, 0.0), ranges, angles, range_min, range_max=range_max)
+    if marks:
+        assert costmap.cost_at(np.array([0.2 + reading - 0.02]), np.array([1.0]))[0] == LETHAL
+    else:
+        assert not costmap.obstacles.any()
+
+
+def test_a_beam_whose_angle_is_not_a_number_is_left_out():
+    # It raised "cannot convert float NaN to integer" in move_base's scan callback, at every scan.
+    costmap = Costmap(INFO, robot_radius=0.1)
+    ranges, angles = beams_towards(1.0)
+    angles[::2] = np.nan
+    costmap.update_from_scan((0.5, 1.0, 0.0), ranges, angles)
+    assert costmap.obstacles.sum() > 0
+    costmap.update_from_scan((0.5, 1.0, 0.0), ranges, np.full(angles.size, np.nan))
+
+
 def test_rolling_costmap_keeps_marks_in_place_when_the_window_moves():
     costmap = RollingCostmap(size=2.0, resolution=0.05, robot_radius=0.1)
     costmap.recenter(0.0, 0.0)

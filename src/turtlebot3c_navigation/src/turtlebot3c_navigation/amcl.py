@@ -20,6 +20,7 @@ from typing import NamedTuple, Optional, Tuple
 
 import numpy as np
 
+from turtlebot3c_common.message_fields import scan_range_limits
 from turtlebot3c_common.parameter_files import like_default
 from turtlebot3c_common.se2 import compose, cos_sin, relative, wrap_angle
 
@@ -488,9 +489,8 @@ class ParticleFilter:
 
     def reach(self, range_max) -> float:
         """The range (m) from which a beam is a no-return, for a scan that gives `range_max`: the
-        scan's, or laser_max_range where that is less, as in ROS amcl. A range_max that is not a
-        positive number sets no limit."""
-        scan_reach = range_max if 0.0 < range_max < math.inf else math.inf
+        scan's, or laser_max_range where that is less, as in ROS amcl."""
+        scan_reach = scan_range_limits(0.0, range_max)[1]
         limit = self.params.laser_max_range
         return min(limit, scan_reach) if limit > 0 else scan_reach
 
@@ -499,7 +499,7 @@ class ParticleFilter:
         p = self.params
         ranges = np.asarray(ranges, dtype=float)
         angles = np.asarray(angles, dtype=float)
-        low = max(p.laser_min_range, range_min if range_min > 0 else 0.0)  # as ROS amcl; NaN: none
+        low = max(p.laser_min_range, scan_range_limits(range_min, math.inf)[0])  # as ROS amcl
         valid = np.isfinite(ranges) & np.isfinite(angles) & (ranges > low) & (ranges < self.reach(range_max))
         ranges, angles = ranges[valid], angles[valid]
         if ranges.size > p.laser_max_beams > 0:

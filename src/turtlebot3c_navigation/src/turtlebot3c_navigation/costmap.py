@@ -14,6 +14,8 @@ from typing import Optional, Tuple
 
 import numpy as np
 
+from turtlebot3c_common.message_fields import scan_range_limits
+
 from .grid_info import GridInfo
 from .likelihood_field import distance_transform
 
@@ -120,13 +122,20 @@ class Costmap:
         self.obstacles[rows[far], cols[far]] = False
         self._costs = None
 
-    def update_from_scan(self, pose, ranges, angles, range_min=0.12, sensor_offset=(0.0, 0.0, 0.0)):
-        """Clear along every beam, then mark the end points of returns within obstacle_range."""
+    def update_from_scan(self, pose, ranges, angles, range_min=0.12, sensor_offset=(0.0, 0.0, 0.0),
+                         range_max=math.inf):
+        """Clear along every beam, then mark the end points of returns within obstacle_range.
+
+        A beam with no return (inf, or range_max and beyond: each LIDAR says it its own way) clears
+        up to raytrace_range and marks nothing; one that is no reading (NaN, 0, below range_min, or
+        at an angle that is not a number) does neither."""
+        range_min, range_max = scan_range_limits(range_min, range_max)
         ranges = np.asarray(ranges, dtype=float)
         angles = np.asarray(angles, dtype=float)
-        valid = ~np.isnan(ranges) & (ranges >= range_min)
+        with np.errstate(invalid="ignore"):
+            valid = (ranges >= range_min) & (ranges > 0.0) & np.isfinite(angles)
         ranges, angles = ranges[valid], angles[valid]
-        hit = np.isfinite(ranges) & (ranges <= self.raytrace_range)
+        hit = (ranges < range_max) & (ranges <= self.raytrace_range)
         clear_lengths = np.where(hit, ranges, self.raytrace_range)
         origin, ends = beam_end_points(pose, clear_lengths, angles, sensor_offset)
         self._clear_rays(origin, ends)

@@ -115,11 +115,12 @@ class Navigator:
 
     # --- sensing ----------------------------------------------------------------------
 
-    def update_scan(self, pose_map, pose_odom, ranges, angles, range_min=0.12, sensor_offset=(0.0, 0.0, 0.0)):
+    def update_scan(self, pose_map, pose_odom, ranges, angles, range_min=0.12, sensor_offset=(0.0, 0.0, 0.0),
+                    range_max=math.inf):
         """Mark and clear both costmaps with a scan taken at these poses."""
-        self.global_costmap.update_from_scan(pose_map, ranges, angles, range_min, sensor_offset)
+        self.global_costmap.update_from_scan(pose_map, ranges, angles, range_min, sensor_offset, range_max)
         self.local_costmap.recenter(pose_odom[0], pose_odom[1])
-        self.local_costmap.update_from_scan(pose_odom, ranges, angles, range_min, sensor_offset)
+        self.local_costmap.update_from_scan(pose_odom, ranges, angles, range_min, sensor_offset, range_max)
 
     # --- control ----------------------------------------------------------------------
 

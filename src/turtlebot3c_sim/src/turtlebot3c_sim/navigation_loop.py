@@ -91,7 +91,7 @@ class ClosedLoop:
             if localizer is not None:
                 localizer.update(odom, scan.ranges, angles, scan.range_min, self.sensor_offset, scan.range_max)
         self.navigator.update_scan(self.estimated_pose(), odom, scan.ranges, angles, scan.range_min,
-                                   self.sensor_offset)
+                                   self.sensor_offset, scan.range_max)
 
     def advance(self, seconds, command=None):
         """Run the scans (and the filter) for `seconds`, driving `command` if given, without navigating."""

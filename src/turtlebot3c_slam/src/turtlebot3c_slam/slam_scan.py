@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 
+from turtlebot3c_common.message_fields import scan_range_limits
 from turtlebot3c_common.scan_deskew import deskew_points
 
 
@@ -32,8 +33,7 @@ class ScanGeometry:
         self.angle_min = float(angle_min)
         self.angle_increment = float(angle_increment)
         self.count = int(count)
-        self.range_min = float(range_min) if math.isfinite(range_min) and range_min > 0 else 0.0
-        self.range_max = float(range_max) if range_max > 0 else math.inf
+        self.range_min, self.range_max = scan_range_limits(range_min, range_max)
         self.mount = tuple(float(v) for v in mount)
         self.upside_down = bool(upside_down)
         sign = -1.0 if upside_down else 1.0
