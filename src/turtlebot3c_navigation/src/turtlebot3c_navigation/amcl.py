@@ -487,20 +487,21 @@ class ParticleFilter:
             return 1.0
         return (trans / short) ** 2
 
-    def reach(self, range_max) -> float:
-        """The range (m) from which a beam is a no-return, for a scan that gives `range_max`: the
-        scan's, or laser_max_range where that is less, as in ROS amcl."""
-        scan_reach = scan_range_limits(0.0, range_max)[1]
-        limit = self.params.laser_max_range
-        return min(limit, scan_reach) if limit > 0 else scan_reach
+    def beam_limits(self, range_min, range_max) -> Tuple[float, float]:
+        """The ranges (m) a beam must lie between to weigh, for a scan that declares these limits,
+        as in ROS amcl: from its range_min, or laser_min_range where more, to its range_max, or
+        laser_max_range where less (<= 0: the scan's)."""
+        low, high = scan_range_limits(range_min, range_max)
+        p = self.params
+        return max(p.laser_min_range, low), (min(p.laser_max_range, high) if p.laser_max_range > 0 else high)
 
     def select_beams(self, ranges, angles, range_min, range_max=math.inf):
         """Valid beams (finite range and angle, within limits), evenly thinned to laser_max_beams."""
         p = self.params
         ranges = np.asarray(ranges, dtype=float)
         angles = np.asarray(angles, dtype=float)
-        low = max(p.laser_min_range, scan_range_limits(range_min, math.inf)[0])  # as ROS amcl
-        valid = np.isfinite(ranges) & np.isfinite(angles) & (ranges > low) & (ranges < self.reach(range_max))
+        low, high = self.beam_limits(range_min, range_max)
+        valid = np.isfinite(ranges) & np.isfinite(angles) & (ranges > low) & (ranges < high)
         ranges, angles = ranges[valid], angles[valid]
         if ranges.size > p.laser_max_beams > 0:
             pick = np.linspace(0, ranges.size - 1, p.laser_max_beams).round().astype(int)
@@ -509,7 +510,7 @@ class ParticleFilter:
 
     def apply_scan(self, ranges, angles, range_min=0.0, sensor_offset=(0.0, 0.0, 0.0), range_max=math.inf):
         """Weight particles by the scan; update the estimate and the recovery averages."""
-        reach = self.reach(range_max)
+        reach = self.beam_limits(range_min, range_max)[1]
         if reach < math.inf:
             self.field.use_max_range(reach)
         selected = self.select_beams(ranges, angles, range_min, range_max)
