@@ -246,6 +246,7 @@ def test_the_initial_pose_defaults_to_the_config_then_the_map_origin(recorded, t
     ("config pose too large", "initial_pose_x must be a finite number, got 1000"),
     ("config range too large", "amcl parameter laser_max_range must be a finite number, got 1000"),
     ("bad pose", "initial pose must be X,Y,YAW"),
+    ("bad seed", "must be a whole number from 0 to 2^32 - 1, got '-1'"),
 ])
 def test_bad_input_fails_with_one_line_and_no_traceback(recorded, tmp_path, problem, expected):
     folder, log, _, odometry, map_yaml, config = recorded
@@ -278,11 +279,13 @@ def test_bad_input_fails_with_one_line_and_no_traceback(recorded, tmp_path, prob
                             "config range too large": b"laser_max_range: 1" + b"0" * 400 + b"\n"}[problem])
     elif problem == "bad pose":
         arguments = ["--initial-pose", "1,2"]
+    elif problem == "bad seed":
+        arguments = ["--seed=-1"]
     result = run_tool(bag, map_yaml, "--config", config, *arguments)
     assert "Traceback" not in result.stderr
     lines = result.stderr.strip().splitlines()
-    if problem == "bad pose":  # argparse's way: its usage, then the message, exit status 2
-        assert result.returncode == 2 and lines[-1].startswith("localize_bag: error: argument --initial-pose: ")
+    if problem in ("bad pose", "bad seed"):  # argparse's way: its usage, then the message, exit status 2
+        assert result.returncode == 2 and lines[-1].startswith("localize_bag: error: argument --")
     else:
         assert result.returncode == 1 and len(lines) == 1 and lines[0].startswith("localize_bag: ")
     assert expected in lines[-1]
