@@ -13,12 +13,6 @@ SNAP_TESTS = Path(__file__).resolve().parent / "snap"
 # Runs the maps app as uid 65534, who cannot reach an interpreter under /root (pyenv's Python 3.8):
 # it runs with the tests that need a master, on this machine's Python, rather than be skipped.
 AS_ANOTHER_USER = {"tests/ros/test_maps_store.py::test_command_line_lists_as_json_and_refuses_changes_without_root"}
-# The files whose tests take minutes in all (each snap test installs the snap through snapsim;
-# the real-data tests replay real logs) run first. pytest-xdist hands out whole files in the order
-# collected, and collected last they left one worker finishing them while the others stood idle:
-# replayed from their tests' times as xdist schedules them, the master lane takes 951 s in path
-# order and 871 s with these first, the core20 lane on 2 workers 327 s and 264 s.
-LONG_RUNNING = ("tests/snap/", "tests/unit/test_slam_real_data.py", "tests/unit/test_amcl_real_data.py")
 
 
 def pytest_addoption(parser):
@@ -35,7 +29,6 @@ def needs_master(item):
 
 
 def pytest_collection_modifyitems(config, items):
-    items.sort(key=lambda item: not item.nodeid.startswith(LONG_RUNNING))  # stable: each file's order kept
     lane = config.getoption("--lane")
     if lane == "all":
         return
