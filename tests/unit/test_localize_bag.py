@@ -175,6 +175,19 @@ def test_laser_max_range_minus_one_takes_the_scans_own_range_max_as_ros_amcl(rec
     assert translation[10:].mean() < 0.06 and rotation[10:].mean() < 1.0
 
 
+def test_without_a_configuration_the_scans_own_range_max_counts(recorded, tmp_path):
+    """Without --config the filter took the LDS's 3.5 m: on this SICK scanner's bag its poses were
+    off by 0.23 m on average, up to 0.70 m (seed 1), against 0.09 and 0.33 m with the scans' reach."""
+    folder, _, truth, _, map_yaml, _ = recorded
+    config = tmp_path / "amcl.yaml"
+    config.write_text("laser_max_range: 81.0\n")  # the bag's scans' range_max
+    start = "--initial-pose={},{},{}".format(*truth[0])
+    for arguments, poses in ((["--config", config], "configured.txt"), ([], "unconfigured.txt")):
+        result = run_tool(folder / "aces.bag", map_yaml, *arguments, start, "--seed", "1", "-o", tmp_path / poses)
+        assert result.returncode == 0 and result.stderr == "", result.stderr
+    assert (tmp_path / "unconfigured.txt").read_text() == (tmp_path / "configured.txt").read_text()
+
+
 def test_odometry_off_the_path_or_not_a_number_and_scans_without_beams_are_left_out(
         recorded, tmp_path):
     """A recording from a robot whose odometry glitched (one sample 10^12 m off: taken as a motion,
