@@ -222,7 +222,7 @@ class ParticleFilter:
         self.field = LikelihoodField(
             occupied, info, max_distance=params.laser_likelihood_max_dist, sigma_hit=params.laser_sigma_hit,
             z_hit=params.laser_z_hit, z_rand=params.laser_z_rand,
-            max_range=params.laser_max_range if params.laser_max_range > 0 else math.inf)
+            max_range=self.beam_limits(0.0, math.inf)[1])  # until a scan gives its own range_max
         free = ~np.asarray(occupied, dtype=bool) if free is None else np.asarray(free, dtype=bool)
         rows, cols = np.nonzero(free)
         if rows.size == 0:
