@@ -6,6 +6,7 @@ and the nav_msgs/Odometry topic) and the other transforms, the frame tree the LI
 found in. OdometrySeries interpolates odometry at any time within it, as tf does.
 """
 import bisect
+import functools
 import math
 import struct
 
@@ -110,6 +111,19 @@ def _collect(inputs, topic, message, names, frame_value):
                 inputs.tf_odometry[1].append(pose_from_transform(transform.transform))
             else:
                 inputs.tree[child] = (parent, frame_value(transform.transform))
+
+
+def frame_in_base(tree, base_frame, frame, identity, then):
+    """`frame`'s transform in `base_frame` through the tree's chain of frame values, each combined
+    with the next by then(parent_side, child_side) from `identity`; None when the chain does not
+    reach the base (or loops)."""
+    frame, chain = frame.lstrip("/"), []
+    while frame != base_frame:
+        if frame not in tree or len(chain) > len(tree):
+            return None
+        frame, value = tree[frame]
+        chain.append(value)
+    return functools.reduce(then, reversed(chain), identity)
 
 
 def odometry_series(inputs, odometry_source, base_frame, odom_topic):

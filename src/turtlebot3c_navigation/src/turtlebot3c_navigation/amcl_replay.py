@@ -20,7 +20,7 @@ from typing import List, NamedTuple, Optional, Tuple
 
 import numpy as np
 
-from turtlebot3c_common.bag_inputs import BagError, odometry_series
+from turtlebot3c_common.bag_inputs import BagError, frame_in_base, odometry_series
 from turtlebot3c_common.scan_deskew import beam_motion, deskew_ranges, reference_time, time_increment
 from turtlebot3c_common.se2 import compose
 
@@ -30,17 +30,7 @@ from .navigation_stack import Localizer, MapLayers, make_filter, scan_angles
 def sensor_offset_in_tree(tree, base_frame, scan_frame):
     """(x, y, yaw) of scan_frame in base_frame through the bag's transforms (planar, as the amcl node
     takes the sensor's offset), or None when the chain does not reach the base."""
-    frame, chain = scan_frame.lstrip("/"), []
-    while frame != base_frame:
-        if frame not in tree or len(chain) > 64:
-            return None
-        parent, pose = tree[frame]
-        chain.append(pose)
-        frame = parent
-    offset = (0.0, 0.0, 0.0)
-    for pose in reversed(chain):
-        offset = compose(offset, pose)
-    return offset
+    return frame_in_base(tree, base_frame, scan_frame, (0.0, 0.0, 0.0), compose)
 
 
 class Start(NamedTuple):

@@ -71,18 +71,9 @@ def read_bag(path, scan_topic="/scan", odom_topic="/odom", odom_frame="odom", ba
 
 def mount_in_tree(tree, base_frame, scan_frame):
     """(x, y, yaw, upside_down) of scan_frame in base_frame from the bag's transforms, or None."""
-    scan_frame, chain = scan_frame.lstrip("/"), []
-    frame = scan_frame
-    while frame != base_frame:
-        if frame not in tree or len(chain) > 64:
-            return None
-        parent, transform = tree[frame]
-        chain.append(transform)
-        frame = parent
-    total = Transform3D((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
-    for transform in reversed(chain):
-        total = total.then(transform)
-    return mount_from_transform(total)
+    identity = Transform3D((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+    total = bag_inputs.frame_in_base(tree, base_frame, scan_frame, identity, Transform3D.then)
+    return None if total is None else mount_from_transform(total)
 
 
 class ReplayResult:
