@@ -426,10 +426,11 @@ def _cpu_flags():
         return set()
 
 
-# OpenBLAS picks its kernels by CPU as well, and its AVX-512 ones (SkylakeX) give other last bits
-# than its AVX2 ones (Haswell, which it also picks on AMD's Zen): on an AMD EPYC with AVX-512,
-# freiburg-079 mild closed 208 loops (5 the reference disagrees with) with the kernels it picked,
-# 206 (2) with Haswell's or Zen's. Where the CPU has AVX2, the benchmarks take Haswell's.
+# OpenBLAS picks its kernels by CPU as well, and they differ in the last bits. On an AMD EPYC
+# with AVX-512 (Zen 4), Debian's OpenBLAS picks Cooperlake's, and freiburg-079 mild closed 208
+# loops (5 the reference disagrees with), against 206 (2) with Haswell's or Zen's; core20's numpy
+# bundles an OpenBLAS too old to know that CPU, which falls back to Barcelona's. Where the CPU
+# has AVX2, the benchmarks take Haswell's kernels, on both runtimes.
 if platform.machine() == "x86_64" and {"avx2", "fma"} <= _cpu_flags():
     SINGLE_CORE_REPRODUCIBLE["OPENBLAS_CORETYPE"] = "Haswell"
 
