@@ -418,12 +418,14 @@ SINGLE_CORE_REPRODUCIBLE = {
 }
 
 
-def _cpu_flags():
+def cpuinfo(field):
+    """The values of /proc/cpuinfo's `field` ("model name", "flags", ...), one per logical CPU;
+    none where there is no such file."""
     try:
-        with open("/proc/cpuinfo", encoding="utf-8") as cpuinfo:
-            return next((set(line.split(":", 1)[1].split()) for line in cpuinfo if line.startswith("flags")), set())
+        with open("/proc/cpuinfo", encoding="utf-8") as lines:
+            return [line.split(":", 1)[1].strip() for line in lines if line.split(":", 1)[0].strip() == field]
     except OSError:
-        return set()
+        return []
 
 
 # OpenBLAS picks its kernels by CPU as well, and they differ in the last bits. On an AMD EPYC
@@ -431,7 +433,7 @@ def _cpu_flags():
 # loops (5 the reference disagrees with), against 206 (2) with Haswell's or Zen's; core20's numpy
 # bundles an OpenBLAS too old to know that CPU, which falls back to Barcelona's. Where the CPU
 # has AVX2, the benchmarks take Haswell's kernels, on both runtimes.
-if platform.machine() == "x86_64" and {"avx2", "fma"} <= _cpu_flags():
+if platform.machine() == "x86_64" and {"avx2", "fma"} <= set(" ".join(cpuinfo("flags")[:1]).split()):
     SINGLE_CORE_REPRODUCIBLE["OPENBLAS_CORETYPE"] = "Haswell"
 
 
