@@ -29,6 +29,7 @@ class DeviceThread(threading.Thread):
         self.bytes_in = 0
         self.bytes_out = 0
         self.plug_count = 0
+        self.unplugged_at = None  # simulated time of the last unplug: when the fault happened
         self._want_plugged = True
         self._applied = threading.Condition()
         self._stopping = threading.Event()
@@ -84,6 +85,7 @@ class DeviceThread(threading.Thread):
                 self.powered_on()
             else:
                 self.link.unplug()
+                self.unplugged_at = self.robot.sim.time
             self._applied.notify_all()
 
     def send(self, data: bytes):
@@ -97,7 +99,8 @@ class DeviceThread(threading.Thread):
 
     def status(self) -> dict:
         return {"plugged": self.link.plugged, "path": str(self.link.path), "device": self.link.slave_name,
-                "plugs": self.plug_count, "bytes_in": self.bytes_in, "bytes_out": self.bytes_out,
+                "plugs": self.plug_count, "unplugged_at": self.unplugged_at,
+                "bytes_in": self.bytes_in, "bytes_out": self.bytes_out,
                 "dropped_bytes": self.link.dropped_bytes, "faults": self.faults.describe(),
                 "faults_injected": dict(self.faults.counts), "error": self.error}
 
@@ -191,7 +194,7 @@ class OpenCRDevice(DeviceThread):
         board = self.robot.board
         status.update(firmware=self.firmware, rosserial_requests=self._rosserial.requests,
                       replies=self.replies, crc_errors_received=self._parser.crc_errors,
-                      requests=board.requests, heartbeat_stalls=board.heartbeat_stalls,
+                      requests=board.requests, heartbeat_stalls=board.heartbeat_stalls, stalled_at=board.stalled_at,
                       torque=board.torque_enabled, goal_velocity=list(board.goal_velocity),
                       sounds=list(board.sounds), calibrations=board.calibrations)
         return status

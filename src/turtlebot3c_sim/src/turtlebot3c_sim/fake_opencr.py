@@ -54,6 +54,7 @@ class FakeOpenCR:
         self.sounds: List[int] = []
         self.calibrations = 0
         self.heartbeat_stalls = 0
+        self.stalled_at = None  # simulated time the last heartbeat stall stopped the motors
         self.requests = 0
         self._goal = (0.0, 0.0)
         self.battery_voltage = BATTERY_VOLTAGE
@@ -97,6 +98,7 @@ class FakeOpenCR:
         if not self.heartbeat_alive and not self._stalled:
             self._stalled = True
             self.heartbeat_stalls += 1
+            self.stalled_at = self.sim.time
             self._goal = (0.0, 0.0)
         self._check_battery()
         self._drive()
