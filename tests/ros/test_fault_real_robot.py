@@ -63,11 +63,12 @@ def test_opencr_unplugged_mid_drive_stops_the_robot_and_replug_resumes_odometry_
     try:
         wait_until_driving(control)
         before = latest_odometry(probe)["position"]
+        commanded = status(control)["time"]
         send_command(control, "unplug opencr")
-        # From the board's own record, in simulated time: polling its status on a loaded machine
-        # would add the poll's delay to the figure (benchmarks/bench_faults measures it over many runs).
+        # The stop is timed from the board's own records, in simulated time: status polls on a
+        # loaded machine would add their delays (benchmarks/bench_faults times it from the command).
         unplugged = status(control)["devices"]["opencr"]["unplugged_at"]
-        _, to_rest = watch_until_at_rest(control, since=unplugged)
+        _, to_rest = watch_until_at_rest(control, since=commanded)  # the odometry's last pose is from before
         stalled = status(control)["devices"]["opencr"]["stalled_at"]
         assert stalled is not None and stalled >= unplugged, "the motors stopped, but not by the board's heartbeat"
         to_zero = stalled - unplugged
