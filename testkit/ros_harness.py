@@ -433,7 +433,7 @@ def cpuinfo(field):
 # loops (5 the reference disagrees with), against 206 (2) with Haswell's or Zen's; core20's numpy
 # bundles an OpenBLAS too old to know that CPU, which falls back to Barcelona's. Where the CPU
 # has AVX2, the benchmarks take Haswell's kernels, on both runtimes.
-if platform.machine() == "x86_64" and {"avx2", "fma"} <= set(" ".join(cpuinfo("flags")[:1]).split()):
+if platform.machine() == "x86_64" and {"avx2", "fma"} <= set((cpuinfo("flags") or [""])[0].split()):
     SINGLE_CORE_REPRODUCIBLE["OPENBLAS_CORETYPE"] = "Haswell"
 
 
