@@ -49,9 +49,10 @@ def ros_env():
 
 
 @pytest.fixture(scope="module")
-def ros_master(ros_env, request):
-    """A real roscore on a free port, private to this test module."""
-    workdir = ros_harness.new_workdir(request.module.__name__)
+def ros_master(ros_env, request, tmp_path_factory):
+    """A real roscore on a free port, private to this test module; its logs stay in pytest's
+    temporary folder (the last three runs' are kept)."""
+    workdir = tmp_path_factory.mktemp(request.module.__name__.rpartition(".")[2])
     master = ros_harness.RosMaster(ros_env, workdir)
     request.config.stash.setdefault(_MASTERS, {})[request.module.__name__] = master
     yield master
