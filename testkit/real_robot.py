@@ -91,5 +91,6 @@ def watch_until_at_rest(control, since=None, timeout=5.0):
         samples.append(status(control))
         return samples[-1]["velocity"] == [0.0, 0.0]
     wait_until(at_rest, timeout, lambda: f"the robot kept moving: {samples[-1]}", interval=0.01)
-    zero_command = next(s["time"] for s in samples if s["command"] == [0.0, 0.0])
+    # The board's own record of when the command became zero: a poll on a loaded machine comes later.
+    zero_command = max(next(s["command_since"] for s in samples if s["command"] == [0.0, 0.0]), start)
     return zero_command - start, samples[-1]["time"] - start

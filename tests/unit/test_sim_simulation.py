@@ -77,6 +77,20 @@ def test_commands_are_clamped_to_the_model_limits():
     assert sim.command == (0.0, 0.0)
 
 
+def test_the_simulation_records_when_the_command_last_changed():
+    # What the fault tests time a stop from: a status poll on a loaded machine comes later.
+    sim = perfect("burger")
+    run(sim, 0.5)
+    sim.set_command(0.1, 0.0)
+    run(sim, 1.0)
+    sim.set_command(0.1, 0.0)  # the same command again, as the driver writes it every cycle
+    assert sim.command_since == pytest.approx(0.5)
+    run(sim, 0.25)
+    sim.stop()
+    run(sim, 1.0)
+    assert sim.command_since == pytest.approx(1.75)
+
+
 def test_the_robot_stops_at_a_wall_and_reports_the_contact():
     world = world_from_description({"obstacles": [{"type": "wall", "from": [1.0, -5], "to": [1.0, 5]}]})
     sim = perfect("burger", world=world)

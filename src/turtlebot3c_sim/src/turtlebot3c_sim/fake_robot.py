@@ -106,6 +106,7 @@ class RealTimeRobot:
             sim = self.sim
             return {"time": sim.time, "pose": list(sim.pose), "velocity": list(sim.velocity),
                     "odometry": list(sim.odometry), "command": list(sim.command),
+                    "command_since": sim.command_since,
                     "collided": sim.collided, "in_contact": sim.in_contact, "collisions": sim.collisions,
                     "world": self.world.name, "model": sim.model.name,
                     "battery_voltage": self.board.battery_voltage, "motor_power": self.board.motor_power,

@@ -127,6 +127,7 @@ class Simulation:
             raise ValueError(f"start pose ({x:.3f}, {y:.3f}, {yaw:.3f}) overlaps an obstacle in {world.name}")
         self.time = 0.0
         self._command = (0.0, 0.0)
+        self.command_since = 0.0  # simulated time the command last changed
         self._linear = 0.0
         self._angular = 0.0
         self._acceleration = 0.0
@@ -146,7 +147,7 @@ class Simulation:
         max_linear, max_angular = self.model.max_linear_velocity, self.model.max_angular_velocity
         linear = 0.0 if not math.isfinite(linear_x) else max(-max_linear, min(max_linear, float(linear_x)))
         angular = 0.0 if not math.isfinite(angular_z) else max(-max_angular, min(max_angular, float(angular_z)))
-        self._command = (linear, angular)
+        self._command_with((linear, angular))
 
     @property
     def command(self) -> Tuple[float, float]:
@@ -154,7 +155,11 @@ class Simulation:
 
     def stop(self):
         """Command zero velocity (the robot still decelerates within its limits)."""
-        self._command = (0.0, 0.0)
+        self._command_with((0.0, 0.0))
+
+    def _command_with(self, command):
+        if command != self._command:
+            self._command, self.command_since = command, self.time
 
     def step(self, dt: float):
         """Advance the simulation by dt seconds."""
