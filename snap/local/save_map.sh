@@ -19,6 +19,17 @@ if ! ROS_MASTER_WAIT="${SAVE_MASTER_WAIT:-30}" "$(dirname -- "$0")/wait_for_mast
   echo "save_map: the map could not be saved: no ROS master to get it from" >&2
   exit 1
 fi
+# First the refinement remap_bag runs at the end of a bag, on this session's keyframes: the map
+# saved is the sharper one. Bounded, within mapping's stop-timeout: past it, or when SLAM does
+# not answer, the map is saved as mapped.
+refine_timeout="${SAVE_REFINE_TIMEOUT:-150}"
+refined="$(timeout "$refine_timeout" rosservice call /refine_map 2>&1)" || true
+if printf '%s\n' "$refined" | grep -q '^success: True'; then
+  echo "save_map: $(printf '%s\n' "$refined" | sed -n 's/^message: "*\([^"]*\)"*$/\1/p')"
+else
+  echo "save_map: the map is saved unrefined: SLAM's refine_map gave no refined map within" \
+    "${refine_timeout} s${refined:+: $(printf '%s' "$refined" | tr '\n' ' ')}" >&2
+fi
 if ! rosrun turtlebot3c_maps map_saver -f "$work/map"; then
   echo "save_map: the map could not be saved (see the map_saver message above)" >&2
   exit 1

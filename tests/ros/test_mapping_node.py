@@ -1,5 +1,6 @@
 """The mapping launch against the simulator: map, tf, map_saver, the session bag, offline re-mapping."""
 import math
+import re
 import subprocess
 import time
 
@@ -122,6 +123,22 @@ def test_map_saver_writes_the_published_map(session):
     assert (saved.data == 100).sum() > 0
 
 
+def test_refine_map_refines_the_keyframes_and_publishes_the_map_before_it_answers(session):
+    # mapping's stop-command calls it, then map_saver takes the latched map: it must be the refined one.
+    master = session["master"]
+    probe = master.probe
+    before = probe.count("/map")
+    response = probe.call("/refine_map", timeout=60)
+    assert response["success"], response
+    assert re.fullmatch(r"map refined: \d+ keyframes against the scans near each, in \d+\.\d s", response["message"])
+    refined = probe.wait_for_message("/map", GRID, start=before, timeout=10)
+    assert refined["header"]["stamp"] > probe.messages("/map")[before - 1]["header"]["stamp"]
+    occupancy_map = grid_map(refined)
+    truth = truth_of(occupancy_map, load_world("turtlebot3_world"))
+    assert cell_agreement(occupancy_map.data, truth) >= 0.95
+    assert occupied_precision(occupancy_map.data, truth) >= 0.95
+
+
 def test_a_scan_without_beams_is_skipped_with_a_warning_not_a_traceback(session):
     master = session["master"]
     for _ in range(3):
@@ -143,6 +160,7 @@ def test_offline_remapping_of_the_session_bag_gives_the_live_map(session):
     # The last scans' keyframes reach /map within one map_update_interval (2 s); nothing observable
     # tells "no newer map is coming", so this one wait is a fixed one.
     time.sleep(3.0)
+    assert master.probe.call("/refine_map", timeout=60)["success"]  # the map as mapping's stop saves it
     live_prefix = folder / "live"
     saved = run(master, "rosrun", "turtlebot3c_maps", "map_saver", "-f", live_prefix)
     assert saved.returncode == 0, saved.stderr

@@ -38,8 +38,10 @@ def run_demo(folder, *args):
     return done, json.loads(summary_file.read_text()), report
 
 
-def assert_demo_mapped_and_navigated(done, summary, report):
+def assert_demo_mapped_and_navigated(folder, done, summary, report):
     assert done.returncode == 0 and summary["ok"], report
+    # mapping's stop refined the session before it saved the map (snap logs kept by the demo)
+    assert "save_map: map refined: " in (folder / "out" / "logs" / "snap.log").read_text(), report
     assert "demo summary" in done.stdout and "goals reached: 1/1" in done.stdout, report
     assert DATED_MAP.match(os.path.basename(summary["map_file"])), summary["map_file"]
     assert {os.path.basename(summary["map_file"]), "current_map.yaml"} <= set(summary["maps_in_folder"])
@@ -56,14 +58,14 @@ def assert_demo_mapped_and_navigated(done, summary, report):
 @pytest.mark.timeout(420)
 def test_quick_demo_in_simulation_maps_the_world_and_reaches_the_goal_on_the_saved_map(tmp_path):
     done, summary, report = run_demo(tmp_path)
-    assert_demo_mapped_and_navigated(done, summary, report)
+    assert_demo_mapped_and_navigated(tmp_path, done, summary, report)
     assert summary["mode"] == "simulation"
 
 
 @pytest.mark.timeout(420)
 def test_quick_demo_on_the_fake_robot_maps_and_navigates_through_the_real_drivers(tmp_path):
     done, summary, report = run_demo(tmp_path, "--real-robot")
-    assert_demo_mapped_and_navigated(done, summary, report)
+    assert_demo_mapped_and_navigated(tmp_path, done, summary, report)
     assert "opencr-port=/dev/pts/" in done.stdout, report
 
 

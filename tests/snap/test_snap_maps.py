@@ -74,6 +74,9 @@ def test_mapping_stop_saves_a_dated_map_and_makes_it_current(system, ros_master,
                     sorted([dated, f"{stem}.pgm", f"{stem}.bag", "current_map.yaml"])), left
     logs = system.logs("turtlebot3c.mapping")
     assert "save_map: map saved" in logs and f"install_last_map: {maps}/{dated} is now the current map" in logs
+    # No SLAM node here (the probe published the map): saved as it was, in one line that says why.
+    assert "save_map: the map is saved unrefined: SLAM's refine_map gave no refined map within 150 s: " \
+        "ERROR: Service [/refine_map] is not available." in logs
 
 
 def test_mapping_stop_saves_the_map_even_when_teleop_is_down(system, ros_master, maps):
