@@ -123,8 +123,9 @@ def test_map_saver_writes_the_published_map(session):
     assert (saved.data == 100).sum() > 0
 
 
-def test_refine_map_refines_the_keyframes_and_publishes_the_map_before_it_answers(session):
-    # mapping's stop-command calls it, then map_saver takes the latched map: it must be the refined one.
+def test_refine_map_says_what_it_refined_and_publishes_the_refined_map(session):
+    # mapping's stop-command calls it, then map_saver takes the latched map (the offline test below
+    # compares that map with remap_bag's).
     master = session["master"]
     probe = master.probe
     before = probe.count("/map")
