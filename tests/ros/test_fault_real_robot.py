@@ -80,7 +80,8 @@ def test_opencr_unplugged_mid_drive_stops_the_robot_and_replug_resumes_odometry_
         send_command(control, "replug opencr")
         replugged_at = time.time()
         resumed = probe.wait_for_message("/odom", ODOMETRY, timeout=10)
-        reconnect = probe.timed_messages("/odom", odom_count)[0]["t"] - replugged_at
+        # The driver's stamp (wall time, at its read): the probe's receipt would add a loaded machine's delays.
+        reconnect = probe.timed_messages("/odom", odom_count)[0]["msg"]["header"]["stamp"] - replugged_at
         print(f"OpenCR replugged: odometry again after {reconnect:.3f} s")
         assert reconnect <= RECONNECT_BUDGET + LOAD_MARGIN
         position = resumed["pose"]["pose"]["position"]
@@ -114,7 +115,7 @@ def test_lidar_unplugged_and_replugged_resumes_scans(robot):
         send_command(control, "replug lds")  # whatever failed, the module's later tests get a robot
     replugged_at = time.time()
     probe.wait_for_message("/scan", SCAN, timeout=10, where=lambda scan: len(scan["ranges"]) == 360)
-    reopened = probe.timed_messages("/scan", quiet_from)[0]["t"] - replugged_at
+    reopened = probe.timed_messages("/scan", quiet_from)[0]["msg"]["header"]["stamp"] - replugged_at  # its first ray
     print(f"LIDAR replugged: scans again after {reopened:.3f} s")
     assert reopened <= RECONNECT_BUDGET + LOAD_MARGIN
     assert "/turtlebot3_lds" in master.node_names()
