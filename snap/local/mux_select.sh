@@ -32,7 +32,8 @@ if [ "$#" -gt 0 ] && [ "$(basename -- "$1")" = "mux_select.sh" ]; then
 fi
 
 deadline=$(($(date +%s) + timeout_s))
-until output="$(timeout 15 rosservice call /mux/select "topic: '$input'" 2>&1)"; do
+# A `rosservice call` waiting for an answer (a hung mux) outlives SIGTERM: the KILL after it ends it.
+until output="$(timeout --kill-after=5 15 rosservice call /mux/select "topic: '$input'" 2>&1)"; do
   if [ "$(date +%s)" -ge "$deadline" ]; then
     # From another machine the usual cause is a wrong ros-master-host, not a stopped teleop: say which.
     if ! timeout 10 rosnode list >/dev/null 2>&1; then

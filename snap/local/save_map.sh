@@ -21,9 +21,10 @@ if ! ROS_MASTER_WAIT="${SAVE_MASTER_WAIT:-30}" "$(dirname -- "$0")/wait_for_mast
 fi
 # First the refinement remap_bag runs at the end of a bag, on this session's keyframes: the map
 # saved is the sharper one. Bounded, within mapping's stop-timeout: past it, or when SLAM does
-# not answer, the map is saved as mapped.
+# not answer, the map is saved as mapped. A `rosservice call` waiting for an answer outlives
+# SIGTERM and SIGINT: only the KILL after it ends it.
 refine_timeout="${SAVE_REFINE_TIMEOUT:-150}"
-refined="$(timeout "$refine_timeout" rosservice call /refine_map 2>&1)" || true
+refined="$(timeout --kill-after=5 "$refine_timeout" rosservice call /refine_map 2>&1)" || true
 if printf '%s\n' "$refined" | grep -q '^success: True'; then
   echo "save_map: $(printf '%s\n' "$refined" | sed -n 's/^message: "*\([^"]*\)"*$/\1/p')"
 else

@@ -4,6 +4,7 @@ import os
 import pytest
 
 from snapsim.supervisor import root_processes
+from testkit import ros_harness
 from testkit.ros_harness import wait_until
 from testkit.snap_system import (
     app_shell,
@@ -19,6 +20,21 @@ from testkit.snap_system import (
 MAP = {"header": {"frame_id": "map"},
        "info": {"resolution": 0.05, "width": 4, "height": 3, "origin": {"position": {"x": -1.0, "y": -2.0}}},
        "data": [0, 0, 100, -1] * 3}
+
+
+# A service that takes calls and never answers (argv: name, type). `timeout` alone does not end a
+# `rosservice call` waiting on one: it outlives SIGTERM and SIGINT.
+SILENT_SERVICE = """
+import sys, time, rospy, roslib.message
+rospy.init_node("silent_service", anonymous=True)
+rospy.Service(sys.argv[1], roslib.message.get_service_class(sys.argv[2]), lambda request: time.sleep(3600))
+rospy.spin()
+"""
+
+
+def silent_service(master, name, service_type):
+    master.start([ros_harness.python(), "-c", SILENT_SERVICE, name, service_type], name="silent_service")
+    master.wait_for_service(name, timeout=60)
 
 
 @pytest.fixture(scope="module")
@@ -53,6 +69,14 @@ def test_mux_selection_fails_clearly_when_teleop_is_not_running(system, ros_mast
     assert done.returncode == 1 and "RAN" not in done.stdout
     assert "could not select 'key_vel': /mux/select did not answer within 2 s" in done.stderr
     assert "sudo snap start turtlebot3c.teleop" in done.stderr
+
+
+def test_mux_selection_that_is_never_answered_fails_clearly_after_its_deadline(system, make_master):
+    master = make_master()
+    silent_service(master, "/mux/select", "topic_tools/MuxSelect")  # a hung mux
+    done = app_shell(system, "key", "echo RAN", master.uri, check=False, MUX_SELECT_TIMEOUT=2)
+    assert done.returncode == 1 and "RAN" not in done.stdout
+    assert "could not select 'key_vel': /mux/select did not answer within 2 s" in done.stderr
 
 
 def test_mapping_stop_saves_a_dated_map_and_makes_it_current(system, ros_master, maps):
@@ -103,6 +127,16 @@ def test_stop_with_no_new_map_keeps_previous_current_map(system, make_master, ma
     assert "save_map: the map could not be saved" in done.stderr
     assert f"no new map was saved; the current map stays {previous}" in done.stderr
     assert not list(maps.glob(".saving*")) and not list(maps.glob("new_map*"))
+
+
+def test_a_refinement_that_does_not_answer_in_time_leaves_the_map_saved_unrefined(system, make_master, maps):
+    master = make_master()
+    master.probe.publish("/map", "nav_msgs/OccupancyGrid", MAP, latch=True)
+    silent_service(master, "/refine_map", "std_srvs/Trigger")  # a refinement longer than the stop allows
+    done = app_shell(system, "mapping", "SAVE_REFINE_TIMEOUT=2 save_map.sh && install_last_map.sh", master.uri)
+    assert "save_map: the map is saved unrefined: SLAM's refine_map gave no refined map within 2 s" in done.stderr
+    [dated] = dated_maps(maps)
+    assert os.readlink(maps / "current_map.yaml") == dated
 
 
 def test_maps_saved_within_one_second_get_distinct_names_and_all_are_kept(system, ros_master, maps, tmp_path):
