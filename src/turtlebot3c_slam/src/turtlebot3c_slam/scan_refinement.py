@@ -10,7 +10,7 @@ Tracking lays each scan on a grid map of match_resolution cells, and a loop clos
 submap: both leave centimetres and tenths of a degree between neighbouring keyframes, and those
 add up along the path. Once the loops are closed the first estimate is within ICP's reach, and
 this takes much of that error out. It costs a twentieth to a sixth of the SLAM's own time, so it
-runs once, at the end of a session (remap_bag).
+runs once, at the end of a session (remap_bag, and mapping's stop through the node's refine_map).
 """
 import copy
 import math
