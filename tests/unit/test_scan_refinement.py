@@ -6,9 +6,12 @@ import pytest
 from benchmarks import scan_consistency
 from testkit.real_data import SEVERITIES, geometry_of, load_log, noisy_odometry, shipped_slam_config
 from turtlebot3c_common.se2 import relative
-from turtlebot3c_sim.evaluation import relative_pose_errors
+from turtlebot3c_sim.evaluation import ROUTES, drive_route, relative_pose_errors
+from turtlebot3c_sim.simulation import Simulation
+from turtlebot3c_sim.world import load_world
 from turtlebot3c_slam import line_icp, scan_refinement
 from turtlebot3c_slam.slam import Slam
+from turtlebot3c_slam.slam_scan import ScanGeometry, scan_rays
 
 
 @pytest.fixture(scope="module")
@@ -63,7 +66,8 @@ def test_a_match_further_from_the_first_estimate_than_a_refinement_mends_is_left
     assert scan_refinement.refine(scan_refinement.chain(turned), clouds) == pytest.approx(turned)
     turned = log.reference[:2] + ((0.0, 0.0, 0.0), (0.0, 0.0, 0.05))  # 0.05 rad off: where the scans agree
     refined = scan_refinement.refine(scan_refinement.chain(turned), clouds)
-    assert relative(*map(tuple, refined)) == pytest.approx(agreed, abs=2e-3)
+    # to the refinement's early stop (SETTLED, KEEP_PAIRS): from 0.05 rad off it ends 2.2 mrad short
+    assert relative(*map(tuple, refined)) == pytest.approx(agreed, abs=3e-3)
 
 
 def test_slam_refined_at_the_end_follows_the_scans_better_and_redraws_its_map(log, scans):
@@ -81,3 +85,31 @@ def test_slam_refined_at_the_end_follows_the_scans_better_and_redraws_its_map(lo
     assert relations_error(log, after) < relations_error(log, before)
     slam.occupancy_map()
     assert not slam.map_outdated
+
+
+def every_tenth_scan_around_the_pillars():
+    """The hits (robot frame) and true poses of every tenth scan of bench_slam's drive round
+    turtlebot3_world: nine round pillars, ranges with 1 cm of noise."""
+    world = load_world("turtlebot3_world")
+    sim = Simulation(world, model="burger", pose=world.spawn_pose, seed=1)
+    mount = sim.model.scan_mount
+    hits, truth = [], []
+
+    def on_scan(simulation):
+        scan = simulation.scan()
+        geometry = ScanGeometry(scan.angle_min, scan.angle_increment, len(scan.ranges), scan.range_min,
+                                scan.range_max, (mount[0], mount[1], 0.0))
+        hits.append(scan_rays(geometry, scan.ranges, shipped_slam_config().usable_range).hits)
+        truth.append(simulation.pose[:3])
+    assert drive_route(sim, ROUTES["turtlebot3_world"], 0.2, on_scan, timeout=1200)
+    return hits[::10], np.array(truth[::10])
+
+
+def test_scans_of_round_pillars_refined_from_the_truth_stay_on_it():
+    """A point-to-line match pairs no point past the end of its partner's line (line_icp): past a
+    pillar's edge it pulled every match the same way, and the refinement drifted 9 mm RMS from
+    the true poses it started on (2.7 mm since)."""
+    hits, truth = every_tenth_scan_around_the_pillars()
+    refined = scan_refinement.refine(scan_refinement.chain(truth), [scan_refinement.scan_cloud(h) for h in hits])
+    apart = refined[:, :2] - truth[:, :2]
+    assert np.sqrt(np.mean(np.sum(apart ** 2, axis=1))) < 0.004
