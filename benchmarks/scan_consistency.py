@@ -146,10 +146,12 @@ def best_alignment(scans, i, j, starts):
     from the reference's pose alone would judge by the reference: at csail's end, where the
     reference turns 11 degrees that the scans do not, it stops in a minimum that fits half as well.
     And ICP can slide along a corridor to a pose that fits worse than where it started (ICP's own
-    cost is not this count): the starts themselves are candidates."""
+    cost is not this count): the starts themselves are candidates. ICP here pairs points past a
+    line's end, as the SLAM's own checks of a closure do (line_icp.LineCloud.pairs): it starts
+    tenths of a metre and degrees off."""
     best, best_fit = None, -1
     for start in starts:
-        matched = scan_refinement.match(scans.clouds[i], scans.clouds[j].points, start)
+        matched = line_icp.align(scans.clouds[i], scans.clouds[j].points, start)
         if matched is None:
             continue
         for pose in (matched[0], tuple(start)):

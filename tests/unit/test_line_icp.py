@@ -49,7 +49,8 @@ def aligned_counting_lookups(target, points, keep_pairs):
     """align's pose from the origin, and how many times it looked the points' partners up."""
     lookups = []
     counting = copy.copy(target)
-    counting.pairs = lambda laid, viewpoint: lookups.append(laid) or target.pairs(laid, viewpoint)
+    counting.pairs = lambda laid, viewpoint, within_lines: lookups.append(laid) or target.pairs(laid, viewpoint,
+                                                                                               within_lines)
     pose, _ = align(counting, points, (0.0, 0.0, 0.0), keep_pairs=keep_pairs)
     return pose, len(lookups)
 
@@ -68,14 +69,15 @@ def test_a_scan_is_aligned_on_the_walls_it_saw_and_keeping_its_pairs_spares_look
     assert kept_lookups < afresh_lookups  # 3 against 7
 
 
-def test_a_point_beyond_the_end_of_a_wall_has_no_partner_on_it_unless_the_cloud_pairs_past_ends():
+def test_within_lines_a_point_beyond_the_end_of_a_wall_has_no_partner_on_it():
     """Paired with the wall's last point, a point past its end would be pulled across a line
-    that does not reach it (a pillar's edge, a door frame, the last hit before a shadow). A loop
-    closure's checks, which align from farther off, pair it all the same."""
-    wall = np.column_stack((np.arange(0.0, 1.001, 0.02), np.full(51, 1.0)))
+    that does not reach it (a pillar's edge, a door frame, the last hit before a shadow): the
+    refinement asks for pairs within lines. A loop closure's checks, which align from farther
+    off, pair it all the same."""
+    wall = LineCloud(np.column_stack((np.arange(0.0, 1.001, 0.02), np.full(51, 1.0))))
     along = np.arange(-0.155, 1.16, 0.01)
     points = np.column_stack((along, np.full(len(along), 0.99)))
-    near, _, residuals, _ = LineCloud(wall).pairs(points, (0.5, 0.0))
+    near, _, residuals, _ = wall.pairs(points, (0.5, 0.0), within_lines=True)
     assert np.array_equal(near, (along > 0.0) & (along < 1.0))
     assert residuals == pytest.approx(0.01)  # 1 cm nearer the scanner than the wall
-    assert LineCloud(wall, past_ends=True).pairs(points, (0.5, 0.0))[0].all()
+    assert wall.pairs(points, (0.5, 0.0))[0].all()

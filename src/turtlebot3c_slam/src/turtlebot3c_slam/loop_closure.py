@@ -125,9 +125,8 @@ def keyframes_agree(old, newest, measured, config, window=0.0, fit_share=ALIAS_F
     neighbours, and a right match made an edge to it wrong by as much. The scans' every hit is
     aligned, not the few points kept for matching, so that more pairs of keyframes overlap
     enough to judge; those that still do not (a corridor walked back the other way) are refused:
-    on freiburg-079 the closures that could not be judged were the ones the scans contradict.
-    Points past a line's end are paired too (LineCloud): the probes start tenths of a metre off."""
-    target = LineCloud(old.rays.hits, past_ends=True)
+    on freiburg-079 the closures that could not be judged were the ones the scans contradict."""
+    target = LineCloud(old.rays.hits)
     aligned = align(target, newest.rays.hits, measured)
     if aligned is None:
         return False

@@ -56,10 +56,10 @@ def scan_cloud(hits):
 
 
 def match(target, source_points, start, iterations=line_icp.ITERATIONS, settled=line_icp.SETTLED, keep_pairs=0.0):
-    """Point-to-line ICP of `source_points` against the LineCloud `target` from `start`: (pose of
-    the source seen from the target, 3x3 information in that pose's frame), or None when they do
-    not overlap enough."""
-    aligned = line_icp.align(target, source_points, start, iterations, settled, keep_pairs)
+    """Point-to-line ICP of `source_points` against the LineCloud `target` from `start`, each point
+    paired only within the lines (line_icp's within_lines): (pose of the source seen from the
+    target, 3x3 information in that pose's frame), or None when they do not overlap enough."""
+    aligned = line_icp.align(target, source_points, start, iterations, settled, keep_pairs, within_lines=True)
     if aligned is None:
         return None
     pose, hessian = aligned
