@@ -49,8 +49,11 @@ def aligned_counting_lookups(target, points, keep_pairs):
     """align's pose from the origin, and how many times it looked the points' partners up."""
     lookups = []
     counting = copy.copy(target)
-    counting.pairs = lambda laid, viewpoint, within_lines: lookups.append(laid) or target.pairs(laid, viewpoint,
-                                                                                               within_lines)
+
+    def counting_pairs(laid, viewpoint, within_lines):
+        lookups.append(laid)
+        return target.pairs(laid, viewpoint, within_lines)
+    counting.pairs = counting_pairs
     pose, _ = align(counting, points, (0.0, 0.0, 0.0), keep_pairs=keep_pairs)
     return pose, len(lookups)
 

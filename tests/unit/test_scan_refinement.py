@@ -106,9 +106,9 @@ def every_tenth_scan_around_the_pillars():
 
 
 def test_scans_of_round_pillars_refined_from_the_truth_stay_on_it():
-    """A point-to-line match pairs no point past the end of its partner's line (line_icp): past a
-    pillar's edge it pulled every match the same way, and the refinement drifted 9 mm RMS from
-    the true poses it started on (2.7 mm since)."""
+    """The refinement's matches pair no point past the end of its partner's line (line_icp's
+    within_lines): past a pillar's edge it pulled every match the same way, and the refinement
+    drifted 9 mm RMS from the true poses it started on (2.7 mm since)."""
     hits, truth = every_tenth_scan_around_the_pillars()
     refined = scan_refinement.refine(scan_refinement.chain(truth), [scan_refinement.scan_cloud(h) for h in hits])
     apart = refined[:, :2] - truth[:, :2]
