@@ -4,14 +4,13 @@ import numpy as np
 import pytest
 
 from benchmarks import scan_consistency
+from testkit import simulated_drive
 from testkit.real_data import SEVERITIES, geometry_of, load_log, noisy_odometry, shipped_slam_config
 from turtlebot3c_common.se2 import relative
-from turtlebot3c_sim.evaluation import ROUTES, drive_route, relative_pose_errors
-from turtlebot3c_sim.simulation import Simulation
-from turtlebot3c_sim.world import load_world
+from turtlebot3c_sim.evaluation import relative_pose_errors
 from turtlebot3c_slam import line_icp, scan_refinement
 from turtlebot3c_slam.slam import Slam
-from turtlebot3c_slam.slam_scan import ScanGeometry, scan_rays
+from turtlebot3c_slam.slam_scan import scan_rays
 
 
 @pytest.fixture(scope="module")
@@ -90,19 +89,11 @@ def test_slam_refined_at_the_end_follows_the_scans_better_and_redraws_its_map(lo
 def every_tenth_scan_around_the_pillars():
     """The hits (robot frame) and true poses of every tenth scan of bench_slam's drive round
     turtlebot3_world: nine round pillars, ranges with 1 cm of noise."""
-    world = load_world("turtlebot3_world")
-    sim = Simulation(world, model="burger", pose=world.spawn_pose, seed=1)
-    mount = sim.model.scan_mount
-    hits, truth = [], []
-
-    def on_scan(simulation):
-        scan = simulation.scan()
-        geometry = ScanGeometry(scan.angle_min, scan.angle_increment, len(scan.ranges), scan.range_min,
-                                scan.range_max, (mount[0], mount[1], 0.0))
-        hits.append(scan_rays(geometry, scan.ranges, shipped_slam_config().usable_range).hits)
-        truth.append(simulation.pose[:3])
-    assert drive_route(sim, ROUTES["turtlebot3_world"], 0.2, on_scan, timeout=1200)
-    return hits[::10], np.array(truth[::10])
+    _, scans, geometry = simulated_drive.drive("turtlebot3_world", seed=1)
+    usable_range = shipped_slam_config().usable_range
+    tenth = scans[::10]
+    hits = [scan_rays(geometry, scan.ranges, usable_range).hits for _, scan, _, _ in tenth]
+    return hits, np.array([truth[:3] for _, _, _, truth in tenth])
 
 
 def test_scans_of_round_pillars_refined_from_the_truth_stay_on_it():
